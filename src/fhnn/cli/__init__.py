@@ -1,0 +1,1 @@
+"""The ``fhnn`` command-line tool (Typer + Rich)."""

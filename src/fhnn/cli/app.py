@@ -1,0 +1,216 @@
+"""``fhnn`` command line: simulate data sets and inspect them.
+
+Every error caused by input (a bad option, parameter, file) is printed as one line
+``error: <what is wrong>`` on standard error, with exit status 2 and no partial output.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from fhnn.data.dataset import check_output_path, read_dataset, write_dataset
+from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.data.summary import summarize
+from fhnn.errors import ConfigError, FhnnError
+from fhnn.physics.scenarios import SCENARIOS, scenario_class
+
+# Typer >= 0.29 vendors its own click; older releases raise click's exceptions.
+_USAGE_ERRORS: tuple[type[Exception], ...] = (typer.TyperException,)
+try:
+    import click
+
+    _USAGE_ERRORS += (click.exceptions.ClickException,)
+except ImportError:  # pragma: no cover - depends on the Typer release
+    pass
+
+app = typer.Typer(
+    name="fhnn",
+    help="Floating-Body Hydrodynamic Neural Networks: simulate, learn and evaluate floating-body dynamics.",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+
+out = Console()
+err = Console(stderr=True)
+
+
+def parse_params(items: list[str]) -> dict[str, str]:
+    """``["NAME=VALUE", ...]`` → ``{NAME: VALUE}``; a malformed item is a :class:`ConfigError`."""
+    params: dict[str, str] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise ConfigError(f"--param expects NAME=VALUE, got {item!r}")
+        params[name.strip()] = value.strip()
+    return params
+
+
+@app.command()
+def simulate(
+    scenario: Annotated[str, typer.Argument(help=f"Scenario: {', '.join(SCENARIOS)}.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="HDF5 file to write.")],
+    n_traj: Annotated[
+        int | None, typer.Option(help="Trajectories over all splits [default: the scenario's]")
+    ] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option(help="Train/val trajectory length in s [default: the scenario's]"),
+    ] = None,
+    test_duration: Annotated[
+        float | None, typer.Option(help="Test trajectory length in s [default: the scenario's]")
+    ] = None,
+    dt: Annotated[float | None, typer.Option(help="Sampling interval in s [default: the scenario's]")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every random draw.")] = 0,
+    actuation: Annotated[
+        str | None, typer.Option(help="none|random (sinusoidal forcing) [default: the scenario's]")
+    ] = None,
+    obs_noise: Annotated[
+        float | None,
+        typer.Option(help="Std of observation noise on stored states [default: the scenario's]"),
+    ] = None,
+    param: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--param",
+            "-p",
+            help="Scenario parameter NAME=VALUE (repeatable); see `fhnn scenarios`.",
+        ),
+    ] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or summary.")] = False,
+) -> None:
+    """Simulate a ground-truth data set (train/val/test splits) and write it as HDF5."""
+    cls = scenario_class(scenario)
+    sc = cls.from_dict(parse_params(param or []))
+    config = SimulationConfig.for_scenario(
+        sc,
+        n_traj=n_traj,
+        duration=duration,
+        test_duration=test_duration,
+        dt=dt,
+        seed=seed,
+        actuation=actuation,
+        obs_noise=obs_noise,
+    )
+    check_output_path(output)
+    with Progress(
+        TextColumn("simulating {task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=err,
+        disable=quiet,
+        transient=False,
+    ) as bar:
+        tasks: dict[str, Any] = {}
+
+        def progress(label: str, done: int, total: int) -> None:
+            if label not in tasks:
+                tasks[label] = bar.add_task(label, total=total)
+            bar.update(tasks[label], completed=done)
+
+        dataset = simulate_dataset(sc, config, progress=progress)
+    write_dataset(dataset, output)
+    if not quiet:
+        _print_summary(summarize(dataset), str(output))
+
+
+@app.command()
+def info(
+    file: Annotated[Path, typer.Argument(help="An fhnn HDF5 data set.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+) -> None:
+    """Describe a data set: scenario, parameters, split sizes, and the ranges of r, speed and σ covered."""
+    summary = summarize(read_dataset(file))
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2, sort_keys=True))
+    else:
+        _print_summary(summary, str(file))
+
+
+@app.command()
+def scenarios() -> None:
+    """List the scenarios with their parameters and defaults."""
+    for name, cls in SCENARIOS.items():
+        table = Table(title=f"{name} — {cls.summary}", title_justify="left")
+        table.add_column("parameter")
+        table.add_column("default", justify="right")
+        for key, value in cls().to_dict().items():
+            table.add_row(key, str(value))
+        out.print(table)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.4g}"
+
+
+def _print_summary(summary: dict[str, Any], path: str) -> None:
+    out.print(
+        f"[bold]{path}[/bold]: scenario [bold]{summary['scenario']}[/bold], seed {summary['seed']}, "
+        f"dt {summary['dt']} s, actuation {summary['actuation']}, obs_noise {summary['obs_noise']}, "
+        f"written by fhnn {summary['version']}"
+    )
+    params = ", ".join(
+        f"{k}={v}" for k, v in summary["scenario_params"].items() if k != "modes" and v is not None
+    )
+    out.print(f"parameters: {params}")
+    if summary["scenario_params"].get("modes"):
+        out.print(f"flow perturbation: {len(summary['scenario_params']['modes'])} frozen modes")
+    body = summary["body_params"]
+    laws = ", ".join(
+        f"{k}: " + ", ".join(f"{a}={_fmt(b)}" if isinstance(b, float) else f"{b}" for a, b in body[k].items())
+        for k in ("m_ax", "m_ay", "c_q", "c_l")
+    )
+    out.print(f"body: M={body['M']} kg, rho={body['rho']} kg/m³, A={body['A']} m²; {laws}")
+    if any(summary["redraws"].values()):
+        out.print(f"redrawn trajectories (too close to the obstacle): {summary['redraws']}")
+    table = Table()
+    for col in ("split", "N", "T", "duration [s]", "r [m]", "|v| [m/s]", "σ [m/s]", "|F_ext| [N]"):
+        table.add_column(col, justify="right")
+    for name, s in summary["splits"].items():
+        cov = s["coverage"]
+        rng = lambda key, cov=cov: f"{_fmt(cov[key][0])} – {_fmt(cov[key][1])}"  # noqa: E731
+        table.add_row(
+            name,
+            str(s["n_traj"]),
+            str(s["n_times"]),
+            _fmt(s["duration"]),
+            rng("r"),
+            rng("speed"),
+            rng("sigma"),
+            rng("force"),
+        )
+    out.print(table)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``fhnn`` console script."""
+    try:
+        code = app(args=argv, prog_name="fhnn", standalone_mode=False)
+    except typer.Abort:
+        _fail("aborted")
+    except _USAGE_ERRORS as exc:
+        _fail(exc.format_message() if hasattr(exc, "format_message") else str(exc))
+    except FhnnError as exc:
+        _fail(str(exc))
+    except OSError as exc:
+        _fail(f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc))
+    sys.exit(code if isinstance(code, int) else 0)
+
+
+def _fail(message: str) -> None:
+    err.print(f"error: {' '.join(message.split())}", highlight=False, markup=False, soft_wrap=True)
+    sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

