@@ -153,6 +153,11 @@ def _fmt(x: float) -> str:
     return f"{x:.4g}"
 
 
+def _law_text(law: dict[str, Any]) -> str:
+    params = ", ".join(f"{k}={_fmt(v)}" for k, v in law.items() if k != "law")
+    return f"{law['law']}({params})"
+
+
 def _print_summary(summary: dict[str, Any], path: str) -> None:
     out.print(
         f"[bold]{path}[/bold]: scenario [bold]{summary['scenario']}[/bold], seed {summary['seed']}, "
@@ -166,30 +171,26 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
     if summary["scenario_params"].get("modes"):
         out.print(f"flow perturbation: {len(summary['scenario_params']['modes'])} frozen modes")
     body = summary["body_params"]
-    laws = ", ".join(
-        f"{k}: " + ", ".join(f"{a}={_fmt(b)}" if isinstance(b, float) else f"{b}" for a, b in body[k].items())
-        for k in ("m_ax", "m_ay", "c_q", "c_l")
-    )
+    laws = "; ".join(f"{k} {_law_text(body[k])}" for k in ("m_ax", "m_ay", "c_q", "c_l"))
     out.print(f"body: M={body['M']} kg, rho={body['rho']} kg/m³, A={body['A']} m²; {laws}")
     if any(summary["redraws"].values()):
         out.print(f"redrawn trajectories (too close to the obstacle): {summary['redraws']}")
-    table = Table()
-    for col in ("split", "N", "T", "duration [s]", "r [m]", "|v| [m/s]", "σ [m/s]", "|F_ext| [N]"):
-        table.add_column(col, justify="right")
-    for name, s in summary["splits"].items():
-        cov = s["coverage"]
-        rng = lambda key, cov=cov: f"{_fmt(cov[key][0])} – {_fmt(cov[key][1])}"  # noqa: E731
-        table.add_row(
-            name,
-            str(s["n_traj"]),
-            str(s["n_times"]),
-            _fmt(s["duration"]),
-            rng("r"),
-            rng("speed"),
-            rng("sigma"),
-            rng("force"),
-        )
-    out.print(table)
+    splits = summary["splits"]
+    sizes = Table(title="splits", title_justify="left")
+    for col in ("split", "trajectories", "samples", "duration \\[s]"):
+        sizes.add_column(col, justify="right")
+    for name, s in splits.items():
+        sizes.add_row(name, str(s["n_traj"]), str(s["n_times"]), _fmt(s["duration"]))
+    out.print(sizes)
+    cover = Table(title="coverage of the clean states (min – max)", title_justify="left")
+    cover.add_column("quantity")
+    for name in splits:
+        cover.add_column(name, justify="right", no_wrap=True)
+    labels = {"r": "r \\[m]", "speed": "|v| \\[m/s]", "sigma": "σ \\[m/s]", "force": "|F_ext| \\[N]"}
+    for key, label in labels.items():
+        cells = [f"{_fmt(s['coverage'][key][0])} – {_fmt(s['coverage'][key][1])}" for s in splits.values()]
+        cover.add_row(label, *cells)
+    out.print(cover)
 
 
 def main(argv: list[str] | None = None) -> None:

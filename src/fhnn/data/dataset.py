@@ -233,8 +233,8 @@ def _read_open(path: Path, f: h5py.File) -> Dataset:
         raise DataFormatError(f"{path}: not an fhnn data set (no 'format' attribute)")
     if _text(fmt) != FORMAT:
         raise DataFormatError(f"{path}: not an fhnn data set (format is {_text(fmt)!r}, expected {FORMAT!r})")
-    version = f.attrs.get("format_version")
-    if version is None or int(version) != FORMAT_VERSION:
+    version = _decode(f.attrs.get("format_version"))
+    if version is None or version != FORMAT_VERSION:
         raise DataFormatError(
             f"{path}: unsupported format_version {version!r} (this fhnn reads {FORMAT_VERSION})"
         )

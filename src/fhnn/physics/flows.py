@@ -103,8 +103,11 @@ class LambOseenVortex(AbstractFlow):
         s = safe_norm_squared(xy) / self.core_radius**2
         small = s < 1e-2
         s_big = jnp.where(small, 1.0, s)
-        # ln s + E1(s) = −γ + s − s²/4 + s³/18 − s⁴/96 + … (smooth at s = 0)
-        series = -EULER_GAMMA + s * (1.0 + s * (-0.25 + s * (1.0 / 18.0 - s / 96.0)))
+        # ln s + E1(s) = −γ − Σ_k (−s)^k / (k·k!) = −γ + s − s²/4 + s³/18 − … (smooth at s = 0);
+        # six terms leave < 1e-18 at the switch s = 1e-2
+        series = -EULER_GAMMA + s * (
+            1.0 + s * (-1.0 / 4.0 + s * (1.0 / 18.0 + s * (-1.0 / 96.0 + s * (1.0 / 600.0 - s / 4320.0))))
+        )
         closed = jnp.log(s_big) + exp1(s_big)
         bracket = jnp.where(small, series, closed)
         return -self.circulation(t) / (4.0 * math.pi) * bracket
@@ -113,8 +116,11 @@ class LambOseenVortex(AbstractFlow):
         s = safe_norm_squared(xy) / self.core_radius**2
         small = s < 1e-2
         s_big = jnp.where(small, 1.0, s)
-        # f(s) = (1 − e^{−s}) / s, with its Taylor series near 0
-        series = 1.0 + s * (-0.5 + s * (1.0 / 6.0 + s * (-1.0 / 24.0 + s / 120.0)))
+        # f(s) = (1 − e^{−s}) / s = Σ_k (−s)^k / (k+1)!, series near 0 (< 1e-18 at s = 1e-2)
+        series = 1.0 + s * (
+            -1.0 / 2.0
+            + s * (1.0 / 6.0 + s * (-1.0 / 24.0 + s * (1.0 / 120.0 + s * (-1.0 / 720.0 + s / 5040.0))))
+        )
         f = jnp.where(small, series, -jnp.expm1(-s_big) / s_big)
         scale = self.circulation(t) / (2.0 * math.pi * self.core_radius**2) * f
         return scale * jnp.stack([-xy[1], xy[0]])

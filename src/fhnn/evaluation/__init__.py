@@ -1,0 +1,1 @@
+"""Evaluation: high-accuracy rollouts and metrics."""
