@@ -87,9 +87,7 @@ def main() -> None:
         f"scipy solve_ivp DOP853 loop    : {scipy_time:8.2f} s  {n / scipy_time:9.1f} traj/s  "
         f"max error {err_scipy:.1e} m{scaled}"
     )
-    print(
-        f"speed-up warm: {scipy_time / warm:.1f}x   incl. compilation: {scipy_time / cold:.1f}x   (goal >= 20x)"
-    )
+    print(f"speed-up warm: {scipy_time / warm:.1f}x   incl. compile: {scipy_time / cold:.1f}x (goal >= 20x)")
     print(
         f"errors against DOP853 at 1e-13 on {n_ref} trajectories: fhnn {err_fhnn:.1e}, scipy {err_scipy:.1e}"
     )

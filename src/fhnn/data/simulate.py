@@ -13,6 +13,7 @@ observation noise. The same seed gives bit-identical arrays.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from typing import Literal
@@ -29,7 +30,7 @@ from fhnn.errors import ConfigError, SimulationError
 from fhnn.physics.actuation import actuation_force, no_actuation, sample_actuation
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import adaptive_solve
-from fhnn.physics.scenarios import Scenario
+from fhnn.physics.scenarios import DatasetDefaults, Scenario
 
 #: ``progress(split, done, total)`` is called after every batch.
 ProgressFn = Callable[[str, int, int], None]
@@ -57,17 +58,17 @@ class SimulationConfig(Config):
 
     config_name = "simulation"
 
-    n_traj: int = 100
-    duration: float = 20.0
-    test_duration: float = 120.0
-    dt: float = 0.05
-    split: tuple[float, float, float] = (0.7, 0.2, 0.1)
+    n_traj: int = DatasetDefaults.n_traj
+    duration: float = DatasetDefaults.duration
+    test_duration: float = DatasetDefaults.test_duration
+    dt: float = DatasetDefaults.dt
+    split: tuple[float, float, float] = DatasetDefaults.split
     seed: int = 0
-    actuation: Literal["none", "random"] = "random"
+    actuation: Literal["none", "random"] = DatasetDefaults.actuation
     actuation_amplitude: float = 1.0
     actuation_f_min: float = 0.05
     actuation_f_max: float = 0.5
-    obs_noise: float = 0.0
+    obs_noise: float = DatasetDefaults.obs_noise
     rtol: float = 1e-12
     atol: float = 1e-12
     batch_size: int = 256
@@ -99,16 +100,7 @@ class SimulationConfig(Config):
     @classmethod
     def for_scenario(cls, scenario: Scenario, **overrides: object) -> SimulationConfig:
         """The scenario's data-set defaults with ``overrides`` (``None`` values are ignored)."""
-        d = scenario.defaults
-        values: dict[str, object] = {
-            "n_traj": d.n_traj,
-            "duration": d.duration,
-            "test_duration": d.test_duration,
-            "dt": d.dt,
-            "split": d.split,
-            "actuation": d.actuation,
-            "obs_noise": d.obs_noise,
-        }
+        values: dict[str, object] = dataclasses.asdict(scenario.defaults)
         values.update({k: v for k, v in overrides.items() if v is not None})
         return cls.from_dict(values)
 

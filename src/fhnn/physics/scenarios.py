@@ -132,13 +132,45 @@ class _PaperBodyScenario(Scenario):
         )
 
     def body(self) -> Body:
+        return self._body(self._laws())
+
+    def _body(self, laws: CoefficientLaws, fluid_inertia: bool = False) -> Body:
+        # V = M/ρ: neutrally buoyant (V enters only the Morison force of the wave scenario)
         return Body(
             mass=self.mass,
             rho=self.rho,
             area=self.area,
             volume=self.mass / self.rho,
-            coefficients=self._laws(),
+            coefficients=laws,
+            fluid_inertia=fluid_inertia,
         )
+
+
+@frozen_config
+class _BoxStartScenario(_PaperBodyScenario):
+    """Initial positions uniform in a box, velocities Gaussian about a scenario-given mean."""
+
+    x0_min: float = 0.0
+    x0_max: float = 0.0
+    y0_min: float = 0.0
+    y0_max: float = 0.0
+    v0_std: float = 0.0
+
+    def validate(self) -> None:
+        super().validate()
+        check_nonnegative(self, "v0_std")
+        check_interval(self, "x0_min", "x0_max")
+        check_interval(self, "y0_min", "y0_max")
+
+    def _mean_initial_velocity(self, pos: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def sample_initial_states(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        pos = np.column_stack(
+            [rng.uniform(self.x0_min, self.x0_max, n), rng.uniform(self.y0_min, self.y0_max, n)]
+        )
+        vel = self._mean_initial_velocity(pos) + rng.normal(0.0, self.v0_std, (n, 2))
+        return np.column_stack([pos, vel])
 
 
 @frozen_config
@@ -277,7 +309,7 @@ class NoisyFlow(_VortexScenario):
 
 
 @frozen_config
-class Obstacle(_PaperBodyScenario):
+class Obstacle(_BoxStartScenario):
     """Uniform stream past a cylinder with circulation; near-wall added mass (SPEC §2.4)."""
 
     name: ClassVar[str] = "obstacle"
@@ -297,9 +329,7 @@ class Obstacle(_PaperBodyScenario):
     def validate(self) -> None:
         super().validate()
         check_positive(self, "radius", "min_distance_factor")
-        check_nonnegative(self, "wall_strength", "v0_std")
-        check_interval(self, "x0_min", "x0_max")
-        check_interval(self, "y0_min", "y0_max")
+        check_nonnegative(self, "wall_strength")
 
     def flow(self) -> AbstractFlow:
         return CylinderFlow(stream_speed=self.stream_speed, radius=self.radius, circulation=self.circulation)
@@ -307,15 +337,12 @@ class Obstacle(_PaperBodyScenario):
     def body(self) -> Body:
         near = lambda m: NearWallAddedMass(m_inf=m, radius=self.radius, strength=self.wall_strength)  # noqa: E731
         laws = self._laws()
-        laws = CoefficientLaws(m_ax=near(self.m_ax), m_ay=near(self.m_ay), c_q=laws.c_q, c_l=laws.c_l)
-        base = super().body()
-        return Body(mass=base.mass, rho=base.rho, area=base.area, volume=base.volume, coefficients=laws)
+        return self._body(
+            CoefficientLaws(m_ax=near(self.m_ax), m_ay=near(self.m_ay), c_q=laws.c_q, c_l=laws.c_l)
+        )
 
-    def sample_initial_states(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        x0 = rng.uniform(self.x0_min, self.x0_max, n)
-        y0 = rng.uniform(self.y0_min, self.y0_max, n)
-        v0 = rng.normal(0.0, self.v0_std, (n, 2)) + np.array([self.stream_speed, 0.0])
-        return np.column_stack([x0, y0, v0])
+    def _mean_initial_velocity(self, pos: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(np.array([self.stream_speed, 0.0]), pos.shape)
 
     def rejected(self, states: np.ndarray) -> np.ndarray:
         r = np.sqrt(states[..., 0] ** 2 + states[..., 1] ** 2)
@@ -324,7 +351,7 @@ class Obstacle(_PaperBodyScenario):
 
 
 @frozen_config
-class Wave(_PaperBodyScenario):
+class Wave(_BoxStartScenario):
     """Neutrally buoyant body under a deep-water wave, with Morison inertia (SPEC §2.5)."""
 
     name: ClassVar[str] = "wave"
@@ -342,30 +369,16 @@ class Wave(_PaperBodyScenario):
     def validate(self) -> None:
         super().validate()
         check_positive(self, "period", "gravity")
-        check_nonnegative(self, "amplitude", "v0_std")
-        check_interval(self, "x0_min", "x0_max")
-        check_interval(self, "y0_min", "y0_max")
+        check_nonnegative(self, "amplitude")
 
     def flow(self) -> AbstractFlow:
         return DeepWaterWave(amplitude=self.amplitude, period=self.period, gravity=self.gravity)
 
     def body(self) -> Body:
-        base = super().body()
-        return Body(
-            mass=base.mass,
-            rho=base.rho,
-            area=base.area,
-            volume=self.mass / self.rho,  # neutrally buoyant: ρV = M
-            coefficients=base.coefficients,
-            fluid_inertia=True,
-        )
+        return self._body(self._laws(), fluid_inertia=True)
 
-    def sample_initial_states(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        x0 = rng.uniform(self.x0_min, self.x0_max, n)
-        y0 = rng.uniform(self.y0_min, self.y0_max, n)
-        pos = np.column_stack([x0, y0])
-        u0 = np.asarray(jax.vmap(self.flow().velocity, in_axes=(0, None))(jnp.asarray(pos), 0.0))
-        return np.column_stack([pos, u0 + rng.normal(0.0, self.v0_std, (n, 2))])
+    def _mean_initial_velocity(self, pos: np.ndarray) -> np.ndarray:
+        return np.asarray(jax.vmap(self.flow().velocity, in_axes=(0, None))(jnp.asarray(pos), 0.0))
 
 
 @frozen_config
