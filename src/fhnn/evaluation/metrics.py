@@ -1,0 +1,76 @@
+"""Trajectory error metrics at horizons (SPEC §5).
+
+For a horizon ``H`` [s] the checkpoints are ``t = 1, 2, …, H`` (or ``0, 1, …, H`` with
+``include_zero=True``, the paper's averaging, where ``t = 0`` contributes zero error). With
+``Δx`` the position error and ``Δv`` the velocity error at a checkpoint:
+
+- ``rmse_pos = sqrt(mean Δx²)`` over trajectories, checkpoints and both coordinates (``rmse_vel``
+  likewise); ``mse_pos``, ``mse_vel`` are the squares;
+- ``ade = mean ‖Δx‖`` over trajectories and checkpoints;
+- ``fde = mean ‖Δx(H)‖`` over trajectories;
+- ``within_eps`` = fraction of trajectories with ``‖Δx(H)‖ < eps`` (``eps = 0.01 m``).
+
+Diverged trajectories (non-finite prediction anywhere up to ``H``) are counted in ``diverged`` and
+left out of the averages (which are NaN when every trajectory diverged); ``within_eps`` counts them
+as failures.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fhnn.errors import ConfigError
+
+METRICS = ("mse_pos", "rmse_pos", "mse_vel", "rmse_vel", "ade", "fde", "within_eps", "diverged", "n_traj")
+
+
+def checkpoint_indices(t: np.ndarray, horizon: float, *, include_zero: bool = False) -> np.ndarray:
+    """Indices into the sample times ``t`` of the checkpoints ``(0,) 1, 2, …, H`` [s]."""
+    if horizon <= 0 or not float(horizon).is_integer():
+        raise ConfigError(f"horizon must be a positive whole number of seconds, got {horizon!r}")
+    if horizon > t[-1] + 1e-9:
+        raise ConfigError(f"horizon {horizon:g} s exceeds the trajectories' length {t[-1]:g} s")
+    marks = np.arange(0 if include_zero else 1, int(horizon) + 1, dtype=float)
+    idx = np.searchsorted(t, marks - 1e-9)
+    if np.any(np.abs(t[np.minimum(idx, t.size - 1)] - marks) > 1e-9):
+        raise ConfigError("the sample times do not contain every whole second up to the horizon")
+    return idx
+
+
+def trajectory_metrics(
+    pred: np.ndarray,
+    truth: np.ndarray,
+    t: np.ndarray,
+    horizon: float,
+    *,
+    eps: float = 0.01,
+    include_zero: bool = False,
+) -> dict[str, float]:
+    """Metrics at ``horizon`` for predicted and true states of shape ``(N, T, 4)`` at times ``t``."""
+    if pred.shape != truth.shape or pred.ndim != 3 or pred.shape[-1] != 4:
+        raise ConfigError(
+            f"pred and truth must both have shape (N, T, 4), got {pred.shape} and {truth.shape}"
+        )
+    idx = checkpoint_indices(t, horizon, include_zero=include_zero)
+    upto = np.searchsorted(t, horizon - 1e-9) + 1
+    finite = np.all(np.isfinite(pred[:, :upto]), axis=(1, 2))
+    n = pred.shape[0]
+    err = pred[finite][:, idx] - truth[finite][:, idx]
+    dpos, dvel = err[..., :2], err[..., 2:]
+    dist = np.linalg.norm(dpos, axis=-1)
+    final = np.full(n, np.inf)
+    final[finite] = dist[:, -1] if dist.size else np.inf
+    with np.errstate(invalid="ignore"):
+        mse_pos = float(np.mean(dpos**2)) if finite.any() else np.nan
+        mse_vel = float(np.mean(dvel**2)) if finite.any() else np.nan
+        return {
+            "mse_pos": mse_pos,
+            "rmse_pos": float(np.sqrt(mse_pos)),
+            "mse_vel": mse_vel,
+            "rmse_vel": float(np.sqrt(mse_vel)),
+            "ade": float(np.mean(dist)) if finite.any() else np.nan,
+            "fde": float(np.mean(dist[:, -1])) if finite.any() else np.nan,
+            "within_eps": float(np.mean(final < eps)),
+            "diverged": int(n - finite.sum()),
+            "n_traj": int(n),
+        }

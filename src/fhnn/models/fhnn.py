@@ -1,0 +1,246 @@
+"""FHNN: Floating-Body Hydrodynamic Neural Network (SPEC §4.1).
+
+The vector field is the analytic :class:`~fhnn.physics.dynamics.EquationsOfMotion` with two learned
+parts in place of the unknown physics:
+
+- :class:`StreamNet` ``ψ_θ(x, y)`` or ``ψ_θ(x, y, t)`` — an MLP whose gradient gives the flow
+  ``u = ∇⊥ψ_θ`` (divergence-free by construction);
+- :class:`CoefficientNet` ``g_φ(r, σ)`` — an MLP whose four raw outputs ``z`` become
+  ``(m_ax, m_ay, c_q, c_l) = C · tanh(softplus(z) / C)``, ``C = (60, 60, 2, 10)``. The paper prints
+  ``C · sigmoid(softplus(z)/C)``, which only reaches ``(C/2, C)`` (SPEC §4.1 erratum); it remains
+  available as ``cap_map="sigmoid"``.
+
+Known body constants ``M, ρ, A, V`` come from the data set. Ablations (paper Table "ablation"):
+``no_added_mass`` (m_a ≡ 0), ``no_linear_drag`` (c_l ≡ 0), ``no_flow`` (u ≡ 0), ``shallow`` (one
+hidden layer), ``relu`` (ReLU activations).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
+from fhnn.errors import ConfigError
+from fhnn.models.base import AbstractVectorField
+from fhnn.physics.body import AbstractCoefficients
+from fhnn.physics.dynamics import EquationsOfMotion
+from fhnn.physics.flows import AbstractFlow, StillWater
+
+Array = jax.Array
+
+ABLATIONS = ("none", "no_added_mass", "no_linear_drag", "no_flow", "shallow", "relu")
+CAPS = (60.0, 60.0, 2.0, 10.0)
+
+
+@frozen_config
+class FHNNConfig(Config):
+    """Architecture of an FHNN.
+
+    Attributes:
+        width: hidden units per layer of both nets.
+        depth: hidden layers of both nets (``shallow`` ablation: 1).
+        activation: "tanh" or "relu" (``relu`` ablation).
+        cap_map: "tanh" (corrected, range (0, C)) or "sigmoid" (the paper's printed map).
+        caps: C for (m_ax, m_ay, c_q, c_l).
+        ablation: one of none, no_added_mass, no_linear_drag, no_flow, shallow, relu.
+        time_dependent: ψ(x, y, t) instead of ψ(x, y); None: from the data set's scenario.
+        fluid_inertia: Morison inertia term from the learned ψ; None: from the data set's body.
+        init_coefficients: coefficient values the net starts at (its last bias is set so).
+    """
+
+    config_name = "fhnn"
+
+    width: int = 64
+    depth: int = 3
+    activation: Literal["tanh", "relu"] = "tanh"
+    cap_map: Literal["tanh", "sigmoid"] = "tanh"
+    caps: tuple[float, float, float, float] = CAPS
+    ablation: Literal["none", "no_added_mass", "no_linear_drag", "no_flow", "shallow", "relu"] = "none"
+    time_dependent: bool | None = None
+    fluid_inertia: bool | None = None
+    init_coefficients: tuple[float, float, float, float] = (10.0, 10.0, 0.5, 2.0)
+
+    def validate(self) -> None:
+        check_positive(self, "width", "depth")
+        if any(c <= 0 for c in self.caps):
+            raise ConfigError(f"fhnn: caps must be > 0, got {self.caps}")
+        for value, cap in zip(self.init_coefficients, self.caps, strict=True):
+            lower = cap / 2 if self.cap_map == "sigmoid" else 0.0
+            if not lower < value < cap:
+                raise ConfigError(
+                    f"fhnn: init_coefficients {self.init_coefficients} must lie inside the range of the "
+                    f"{self.cap_map} cap map ({lower:g}, {cap:g}) for each coefficient"
+                )
+        check_nonnegative(self, "width")
+
+    @property
+    def effective_depth(self) -> int:
+        return 1 if self.ablation == "shallow" else self.depth
+
+    @property
+    def effective_activation(self) -> str:
+        return "relu" if self.ablation == "relu" else self.activation
+
+
+def _activation(name: str):
+    return jax.nn.relu if name == "relu" else jnp.tanh
+
+
+class StreamNet(AbstractFlow):
+    """``ψ_θ(x, y[, t]) = psi_scale · MLP((x, y)/length_scale[, t/time_scale])`` [m²/s]."""
+
+    mlp: eqx.nn.MLP
+    length_scale: float = eqx.field(static=True)
+    psi_scale: float = eqx.field(static=True)
+    time_scale: float = eqx.field(static=True)
+    uses_time: bool = eqx.field(static=True)
+
+    @property
+    def time_dependent(self) -> bool:
+        return self.uses_time
+
+    def stream(self, xy: Array, t: Array) -> Array:
+        inp = jnp.asarray(xy) / self.length_scale
+        if self.uses_time:
+            inp = jnp.concatenate([inp, jnp.reshape(jnp.asarray(t, inp.dtype) / self.time_scale, (1,))])
+        return self.psi_scale * self.mlp(inp)[0]
+
+
+class CoefficientNet(AbstractCoefficients):
+    """``g_φ(r, σ) → (m_ax, m_ay, c_q, c_l)`` through a capped positive map."""
+
+    mlp: eqx.nn.MLP
+    caps: tuple[float, ...] = eqx.field(static=True)
+    cap_map: str = eqx.field(static=True)
+    mask: tuple[float, ...] = eqx.field(static=True)
+    r_scale: float = eqx.field(static=True)
+    sigma_scale: float = eqx.field(static=True)
+
+    def __call__(self, r: Array, sigma: Array) -> Array:
+        z = self.mlp(jnp.stack([r / self.r_scale, sigma / self.sigma_scale]))
+        return cap(z, jnp.asarray(self.caps), self.cap_map) * jnp.asarray(self.mask)
+
+
+def cap(z: Array, caps: Array, kind: str) -> Array:
+    """``C·tanh(softplus(z)/C)`` (kind "tanh") or the paper's ``C·sigmoid(softplus(z)/C)``."""
+    sp = jax.nn.softplus(z) / caps
+    return caps * (jnp.tanh(sp) if kind == "tanh" else jax.nn.sigmoid(sp))
+
+
+def uncap(value: np.ndarray, caps: np.ndarray, kind: str) -> np.ndarray:
+    """Inverse of :func:`cap`: the raw ``z`` that gives ``value``."""
+    x = value / caps
+    sp = np.arctanh(x) if kind == "tanh" else np.log(x / (1 - x))
+    sp = sp * caps
+    return sp + np.log(-np.expm1(-sp))  # inverse softplus
+
+
+class FHNN(AbstractVectorField):
+    """The FHNN vector field: learned ψ and coefficients inside the analytic equations of motion."""
+
+    eom: EquationsOfMotion
+
+    @property
+    def flow(self) -> AbstractFlow:
+        return self.eom.flow
+
+    @property
+    def coefficients(self) -> AbstractCoefficients:
+        return self.eom.coefficients
+
+    def __call__(self, state: Array, t: Array, force: Array) -> Array:
+        return self.eom(state, t, force)
+
+    def regularization(self, states: Array, ts: Array) -> dict[str, Array]:
+        """``{"flow": mean ‖Hψ‖²_F}`` at the batch positions (zero without a learned flow)."""
+        if not isinstance(self.flow, StreamNet):
+            return {"flow": jnp.zeros(())}
+        hess = jax.vmap(jax.jacrev(jax.grad(self.flow.stream)))(states[:, :2], ts)
+        return {"flow": jnp.mean(jnp.sum(hess**2, axis=(1, 2)))}
+
+
+def build_fhnn(
+    config: FHNNConfig,
+    *,
+    mass: float,
+    rho: float,
+    area: float,
+    volume: float,
+    time_dependent: bool,
+    fluid_inertia: bool,
+    length_scale: float,
+    speed_scale: float,
+    time_scale: float,
+    key: Array,
+) -> FHNN:
+    """An FHNN with fresh weights drawn from ``key``.
+
+    Args:
+        config: architecture (its ``time_dependent`` / ``fluid_inertia``, when set, override the
+            arguments of the same name).
+        mass, rho, area, volume: known body constants [kg, kg/m³, m², m³].
+        time_dependent, fluid_inertia: defaults from the data set.
+        length_scale: typical |x| [m] (input scaling of ψ_θ and of r).
+        speed_scale: typical flow/relative speed [m/s] (scales ψ_θ's output and σ).
+        time_scale: typical duration [s] (input scaling of t).
+        key: PRNG key.
+    """
+    k_flow, k_coef = jax.random.split(key)
+    act = _activation(config.effective_activation)
+    depth = config.effective_depth
+    if config.time_dependent is not None:
+        time_dependent = config.time_dependent
+    if config.fluid_inertia is not None:
+        fluid_inertia = config.fluid_inertia
+    flow: AbstractFlow
+    if config.ablation == "no_flow":
+        flow = StillWater()
+    else:
+        mlp = eqx.nn.MLP(2 + int(time_dependent), 1, config.width, depth, activation=act, key=k_flow)
+        flow = StreamNet(
+            mlp=mlp,
+            length_scale=length_scale,
+            psi_scale=speed_scale * length_scale,
+            time_scale=time_scale,
+            uses_time=time_dependent,
+        )
+    mask = [1.0, 1.0, 1.0, 1.0]
+    if config.ablation == "no_added_mass":
+        mask[0] = mask[1] = 0.0
+    if config.ablation == "no_linear_drag":
+        mask[3] = 0.0
+    coef_mlp = eqx.nn.MLP(2, 4, config.width, depth, activation=act, key=k_coef)
+    # start the coefficients near init_coefficients: small last-layer weights, bias at the inverse map
+    caps = np.asarray(config.caps)
+    bias = uncap(np.asarray(config.init_coefficients), caps, config.cap_map)
+    last = coef_mlp.layers[-1]
+    last = eqx.tree_at(lambda l: (l.weight, l.bias), last, (last.weight * 0.1, jnp.asarray(bias)))
+    coef_mlp = eqx.tree_at(lambda m: m.layers[-1], coef_mlp, last)
+    coefficients = CoefficientNet(
+        mlp=coef_mlp,
+        caps=tuple(float(c) for c in caps),
+        cap_map=config.cap_map,
+        mask=tuple(mask),
+        r_scale=length_scale,
+        sigma_scale=max(speed_scale, 1e-6),
+    )
+    eom = EquationsOfMotion(
+        flow=flow,
+        coefficients=coefficients,
+        mass=mass,
+        rho=rho,
+        area=area,
+        volume=volume,
+        fluid_inertia=fluid_inertia,
+    )
+    return FHNN(eom=eom)
+
+
+def fhnn_parameter_count(model: FHNN) -> int:
+    return int(sum(math.prod(x.shape) for x in jax.tree_util.tree_leaves(eqx.filter(model, eqx.is_array))))
