@@ -40,7 +40,7 @@ app = typer.Typer(
     rich_markup_mode=None,
 )
 
-out = Console()
+stdout = Console()
 err = Console(stderr=True)
 
 
@@ -146,7 +146,122 @@ def scenarios() -> None:
         table.add_column("default", justify="right")
         for key, value in cls().to_dict().items():
             table.add_row(key, str(value))
-        out.print(table)
+        stdout.print(table)
+
+
+@app.command()
+def train(
+    data: Annotated[Path, typer.Argument(help="Training data set (HDF5).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Run folder to create (or resume).")],
+    model: Annotated[str, typer.Option(help="Model: fhnn.")] = "fhnn",
+    ablation: Annotated[
+        str, typer.Option(help="none|no_added_mass|no_linear_drag|no_flow|shallow|relu")
+    ] = "none",
+    steps: Annotated[int | None, typer.Option(help="Optimiser steps [default: 20000]")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of initialisation and batch order.")] = 0,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set", help="Model or training option NAME=VALUE, e.g. width=32, lr=1e-3 (repeatable)."
+        ),
+    ] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+) -> None:
+    """Train a model on a data set; resumes if RUN already holds a checkpoint of the same model."""
+    from fhnn.models.fhnn import FHNNConfig
+    from fhnn.training.run import Run
+    from fhnn.training.trainer import TrainConfig
+
+    if model != "fhnn":
+        raise ConfigError(f"unknown model {model!r}; available: fhnn")
+    options = parse_params(set_ or [])
+    model_fields, train_fields = set(FHNNConfig.field_names()), set(TrainConfig.field_names())
+    unknown = [k for k in options if k not in model_fields | train_fields]
+    if unknown:
+        raise ConfigError(
+            f"unknown option {unknown[0]!r} for --set; model options: "
+            f"{', '.join(sorted(model_fields))}; training options: {', '.join(sorted(train_fields))}"
+        )
+    model_config = FHNNConfig.from_dict(
+        {**{k: v for k, v in options.items() if k in model_fields}, "ablation": ablation}
+    )
+    train_opts = {k: v for k, v in options.items() if k in train_fields}
+    train_opts["seed"] = seed
+    if steps is not None:
+        train_opts["steps"] = steps
+    train_config = TrainConfig.from_dict(train_opts)
+    dataset = read_dataset(data)
+    if (out / "run.json").exists():
+        run = Run.load(out, expect_model=model)
+        err.print(f"resuming {out} from step {run.state.step}")
+    else:
+        run = Run.create(out, dataset, str(data), model, model_config, train_config)
+    total = run.train_config.steps
+    with Progress(
+        TextColumn("training"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("{task.fields[losses]}"),
+        console=err,
+        disable=quiet,
+    ) as bar:
+        task = bar.add_task("train", total=total, completed=run.state.step if run.state else 0, losses="")
+
+        def progress(state: Any, record: dict[str, float]) -> None:
+            val = record["val_deriv"] + record["val_step"]
+            losses = (
+                f"deriv {record['train_deriv']:.2e} step {record['train_step']:.2e} "
+                f"flow {record.get('train_flow', 0.0):.2e} | val {val:.2e}"
+            )
+            bar.update(task, completed=state.step, losses=losses)
+
+        run.train(dataset, callback=progress)
+    if not quiet:
+        best = run.state.best_val
+        stdout.print(
+            f"trained {run.kind} for {run.state.step} steps; best validation loss {best:.3e}; saved to {out}"
+        )
+
+
+@app.command()
+def evaluate(
+    run_dir: Annotated[Path, typer.Argument(help="Run folder written by `fhnn train`.")],
+    data: Annotated[
+        Path | None, typer.Argument(help="Data set [default: the one the run was trained on]")
+    ] = None,
+    horizons: Annotated[str, typer.Option(help="Comma-separated horizons in whole seconds.")] = "1,2,5,16,60",
+    split: Annotated[str, typer.Option(help="train|val|test")] = "test",
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print {horizon: {metric: value}} as JSON.")
+    ] = False,
+) -> None:
+    """Roll the best model out from each trajectory's first state and report errors at horizons."""
+    from fhnn.evaluation.evaluate import evaluate as run_evaluation
+    from fhnn.training.run import Run
+
+    try:
+        hs = [float(h) for h in horizons.split(",") if h.strip()]
+    except ValueError:
+        raise ConfigError(f"--horizons expects numbers separated by commas, got {horizons!r}") from None
+    run = Run.load(run_dir)
+    dataset = read_dataset(data if data is not None else run.meta["data"])
+    result = run_evaluation(run.state.best_model, dataset, hs, split=split)
+    if as_json:
+        typer.echo(
+            json.dumps({**result["horizons"], "diverged_count": int(sum(result["diverged"]))}, indent=2)
+        )
+        return
+    table = Table(
+        title=f"{run_dir} on {split} ({len(result['diverged'])} trajectories)", title_justify="left"
+    )
+    cols = ("rmse_pos", "rmse_vel", "ade", "fde", "within_eps", "diverged", "outside_training")
+    table.add_column("H \\[s]", justify="right")
+    for c in cols:
+        table.add_column(c, justify="right")
+    for h, m in result["horizons"].items():
+        table.add_row(h, *(f"{m[c]:.3g}" for c in cols))
+    stdout.print(table)
 
 
 def _fmt(x: float) -> str:
@@ -159,7 +274,7 @@ def _law_text(law: dict[str, Any]) -> str:
 
 
 def _print_summary(summary: dict[str, Any], path: str) -> None:
-    out.print(
+    stdout.print(
         f"[bold]{path}[/bold]: scenario [bold]{summary['scenario']}[/bold], seed {summary['seed']}, "
         f"dt {summary['dt']} s, actuation {summary['actuation']}, obs_noise {summary['obs_noise']}, "
         f"written by fhnn {summary['version']}"
@@ -167,21 +282,21 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
     params = ", ".join(
         f"{k}={v}" for k, v in summary["scenario_params"].items() if k != "modes" and v is not None
     )
-    out.print(f"parameters: {params}")
+    stdout.print(f"parameters: {params}")
     if summary["scenario_params"].get("modes"):
-        out.print(f"flow perturbation: {len(summary['scenario_params']['modes'])} frozen modes")
+        stdout.print(f"flow perturbation: {len(summary['scenario_params']['modes'])} frozen modes")
     body = summary["body_params"]
     laws = "; ".join(f"{k} {_law_text(body[k])}" for k in ("m_ax", "m_ay", "c_q", "c_l"))
-    out.print(f"body: M={body['M']} kg, rho={body['rho']} kg/m³, A={body['A']} m²; {laws}")
+    stdout.print(f"body: M={body['M']} kg, rho={body['rho']} kg/m³, A={body['A']} m²; {laws}")
     if any(summary["redraws"].values()):
-        out.print(f"redrawn trajectories (too close to the obstacle): {summary['redraws']}")
+        stdout.print(f"redrawn trajectories (too close to the obstacle): {summary['redraws']}")
     splits = summary["splits"]
     sizes = Table(title="splits", title_justify="left")
     for col in ("split", "trajectories", "samples", "duration \\[s]"):
         sizes.add_column(col, justify="right")
     for name, s in splits.items():
         sizes.add_row(name, str(s["n_traj"]), str(s["n_times"]), _fmt(s["duration"]))
-    out.print(sizes)
+    stdout.print(sizes)
     cover = Table(title="coverage of the clean states (min – max)", title_justify="left")
     cover.add_column("quantity")
     for name in splits:
@@ -190,7 +305,7 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
     for key, label in labels.items():
         cells = [f"{_fmt(s['coverage'][key][0])} – {_fmt(s['coverage'][key][1])}" for s in splits.values()]
         cover.add_row(label, *cells)
-    out.print(cover)
+    stdout.print(cover)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,0 +1,167 @@
+"""FHNN model, training, checkpoints, rollout and metrics."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from fhnn.errors import ConfigError, DataFormatError
+from fhnn.evaluation.metrics import trajectory_metrics
+from fhnn.evaluation.rollout import rollout
+from fhnn.models.fhnn import FHNN, FHNNConfig, cap, uncap
+from fhnn.physics.dynamics import EquationsOfMotion
+from fhnn.physics.flows import AbstractFlow
+from fhnn.training.run import Run, build_arguments, build_model, check_trainable
+from fhnn.training.trainer import TrainConfig
+
+from .conftest import small_dataset
+
+
+class StreamOnly(AbstractFlow):
+    """A flow known only through its stream function: velocity by autodiff, as in the stream net."""
+
+    inner: AbstractFlow
+
+    @property
+    def time_dependent(self):
+        return self.inner.time_dependent
+
+    def stream(self, xy, t):
+        return self.inner.stream(xy, t)
+
+
+@pytest.mark.parametrize(
+    "name", ["steady_vortex", "time_varying_vortex", "obstacle", "wave", "solid_body_vortex"]
+)
+def test_fhnn_with_true_stream_function_and_laws_reproduces_derivs(name):
+    ds = small_dataset(name)
+    body = ds.body()
+    truth = EquationsOfMotion.of(StreamOnly(inner=ds.scenario_object().flow()), body)
+    model = FHNN(eom=truth)
+    split = ds.train
+    f = jax.vmap(jax.vmap(model, in_axes=(0, 0, 0)), in_axes=(0, None, 0))
+    pred = np.asarray(f(jnp.asarray(split.states_clean), jnp.asarray(split.t), jnp.asarray(split.forces)))
+    scale = np.abs(split.derivs).max()
+    assert np.abs(pred - split.derivs).max() <= 1e-12 * max(scale, 1.0)
+
+
+def test_cap_maps():
+    caps = jnp.asarray([60.0, 60.0, 2.0, 10.0])
+    z = jnp.linspace(-30, 30, 301)[:, None] * jnp.ones(4)
+    tanh_map = np.asarray(jax.vmap(lambda v: cap(v, caps, "tanh"))(z))
+    sig_map = np.asarray(jax.vmap(lambda v: cap(v, caps, "sigmoid"))(z))
+    assert (tanh_map > 0).all() and (tanh_map < np.asarray(caps)).all()
+    assert tanh_map[0].max() < 1e-12  # reaches (almost) zero: m_a < 30 and c_l < 5 are expressible
+    # the paper's printed map cannot go below C/2 (SPEC §4.1 erratum)
+    assert (sig_map >= np.asarray(caps) / 2).all()
+    # ≈ softplus while small
+    small = jnp.asarray([-3.0, -3.0, -3.0, -3.0])
+    np.testing.assert_allclose(
+        np.asarray(cap(small, caps, "tanh")), np.asarray(jax.nn.softplus(small)), rtol=1e-3
+    )
+    for kind, values in (
+        ("tanh", np.array([12.0, 20.0, 0.8, 3.0])),
+        ("sigmoid", np.array([40.0, 50.0, 1.5, 7.0])),
+    ):
+        back = np.asarray(cap(jnp.asarray(uncap(values, np.asarray(caps), kind)), caps, kind))
+        np.testing.assert_allclose(back, values, rtol=1e-12)
+    with pytest.raises(ConfigError, match="must lie inside the range of the sigmoid cap map"):
+        FHNNConfig(cap_map="sigmoid")  # default init (10, 10, 0.5, 2) is below C/2
+
+
+def test_metrics_on_hand_made_arrays():
+    t = np.arange(0, 5.01, 0.5)
+    truth = np.zeros((2, t.size, 4))
+    pred = np.zeros_like(truth)
+    pred[0, :, 0] = 0.003 * t  # trajectory 0: x error grows linearly (3 mm/s)
+    pred[1, :, 1] = 0.004  # trajectory 1: constant 4 mm error in y
+    pred[1, :, 3] = 0.1  # and 0.1 m/s error in vy
+    m = trajectory_metrics(pred, truth, t, 2)  # checkpoints t = 1, 2
+    expected_mse = (0.003**2 + 0.006**2 + 2 * 0.004**2) / 8
+    assert m["mse_pos"] == pytest.approx(expected_mse)
+    assert m["rmse_pos"] == pytest.approx(np.sqrt(expected_mse))
+    assert m["rmse_vel"] == pytest.approx(np.sqrt(2 * 0.1**2 / 8))
+    assert m["ade"] == pytest.approx((0.003 + 0.006 + 0.004 + 0.004) / 4)
+    assert m["fde"] == pytest.approx((0.006 + 0.004) / 2)
+    assert m["within_eps"] == 1.0 and m["diverged"] == 0
+    paper = trajectory_metrics(pred, truth, t, 2, include_zero=True)  # t = 0 adds zero error for traj 0
+    assert paper["ade"] == pytest.approx((0.003 + 0.006 + 0.004 * 3) / 6)
+    pred[1, 6, 0] = np.nan  # trajectory 1 diverges at t = 3 s
+    assert trajectory_metrics(pred, truth, t, 2)["diverged"] == 0
+    late = trajectory_metrics(pred, truth, t, 4)
+    assert late["diverged"] == 1 and late["within_eps"] == 0.0
+    assert late["fde"] == pytest.approx(0.012)
+    with pytest.raises(ConfigError, match="horizon 9 s exceeds"):
+        trajectory_metrics(pred, truth, t, 9)
+
+
+@pytest.fixture(scope="module")
+def data():
+    return small_dataset("steady_vortex", n_traj=30, duration=5.0)
+
+
+def test_short_training_lowers_validation_error(data, tmp_path):
+    run = Run.create(
+        tmp_path / "r",
+        data,
+        "mem",
+        "fhnn",
+        FHNNConfig(width=32),
+        TrainConfig(steps=600, val_every=100, lr=3e-3),
+    )
+    state = run.train(data, save=False)
+    first, best = state.history[0], state.best_val
+    initial = run.skeleton()
+    from fhnn.training.trainer import Trainer
+
+    untrained = Trainer(run.train_config, data.train, data.val).validate(initial)
+    assert best < (untrained["deriv"] + untrained["step"]) / 50, (untrained, first, best)
+
+
+def test_checkpoint_round_trip_and_exact_resume(data, tmp_path):
+    cfg, tc = FHNNConfig(width=16), TrainConfig(steps=40, val_every=10, batch_size=32)
+    straight = Run.create(tmp_path / "a", data, "mem", "fhnn", cfg, tc)
+    straight.train(data)
+    stopped = Run.create(tmp_path / "b", data, "mem", "fhnn", cfg, tc)
+    stopped.train(data, until=20)
+    resumed = Run.load(tmp_path / "b")
+    assert resumed.state.step == 20
+    resumed.train(data)
+    loaded = Run.load(tmp_path / "a")
+    s = jnp.asarray(data.test.states[0, 3])
+    f = jnp.asarray([0.3, -0.2])
+    for model in (resumed.state.model, loaded.state.model):
+        np.testing.assert_array_equal(
+            np.asarray(model(s, 0.15, f)), np.asarray(straight.state.model(s, 0.15, f))
+        )
+    assert loaded.state.history == straight.state.history
+
+
+def test_bad_checkpoints_and_data(data, tmp_path):
+    run = Run.create(
+        tmp_path / "a", data, "mem", "fhnn", FHNNConfig(width=8), TrainConfig(steps=2, val_every=1)
+    )
+    run.train(data)
+    with pytest.raises(DataFormatError, match="checkpoint is a 'fhnn' model, not 'hnn'"):
+        Run.load(tmp_path / "a", expect_model="hnn")
+    with pytest.raises(DataFormatError, match="not an fhnn run"):
+        Run.load(tmp_path)
+    (tmp_path / "a" / "model.eqx").write_bytes(b"garbage")
+    with pytest.raises(DataFormatError, match="checkpoint files missing or incompatible"):
+        Run.load(tmp_path / "a")
+    data.train.states[0, 0, 0] = np.nan
+    try:
+        with pytest.raises(DataFormatError, match="split 'train': states contains NaN"):
+            check_trainable(data)
+    finally:
+        data.train.states[0, 0, 0] = data.train.states_clean[0, 0, 0]
+
+
+def test_rollout_tolerance_error_is_far_below_reported_errors(data):
+    # a random (untrained) FHNN is a rough vector field; its rollout at the default tolerance must
+    # agree with a 1000x tighter solve far below the accuracy targets (1e-5 m)
+    model = build_model("fhnn", FHNNConfig(width=16), build_arguments(data), seed=3)
+    loose = rollout(model, data.test)
+    tight = rollout(model, data.test, rtol=1e-13, atol=1e-13)
+    assert loose.ok.all() and tight.ok.all()
+    assert np.abs(loose.states - tight.states).max() < 1e-9
