@@ -1,5 +1,6 @@
 """FHNN model, training, checkpoints, rollout and metrics."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -165,3 +166,82 @@ def test_rollout_tolerance_error_is_far_below_reported_errors(data):
     tight = rollout(model, data.test, rtol=1e-13, atol=1e-13)
     assert loose.ok.all() and tight.ok.all()
     assert np.abs(loose.states - tight.states).max() < 1e-9
+
+
+def test_far_field_term_extrapolates_solid_body_rotation_and_is_not_penalised():
+    from fhnn.physics.flows import SolidBodyRotation
+
+    ds = small_dataset("solid_body_vortex")
+    args = build_arguments(ds)
+    model = build_model("fhnn", FHNNConfig(width=8), args, seed=0)
+    flow = model.flow
+    # zero the MLP, set Q so that ψ = −(Ω/2) r²: ψ_scale · ½ q ξ² with ξ = x / L
+    zeroed = jax.tree_util.tree_map(lambda x: jnp.zeros_like(x), flow.mlp)
+    q = -0.2 * flow.length_scale**2 / flow.psi_scale
+    flow = eqx.tree_at(lambda f: (f.mlp, f.quadratic), flow, (zeroed, jnp.asarray([q, 0.0, q])))
+    truth = SolidBodyRotation(omega=0.2)
+    for xy in ([0.5, -1.0], [15.0, 12.0], [-20.0, 3.0]):  # inside and far outside the data
+        np.testing.assert_allclose(
+            np.asarray(flow.velocity(jnp.asarray(xy), 0.0)),
+            np.asarray(truth.velocity(jnp.asarray(xy), 0.0)),
+            rtol=1e-13,
+        )
+    model = eqx.tree_at(lambda m: m.eom.flow, model, flow)
+    assert float(model.regularization(jnp.ones((4, 4)), jnp.zeros(4))["flow"]) == 0.0
+
+
+def test_recovery_of_the_truth_is_exact(data):
+    from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+
+    truth = data.equations()
+    coef = coefficient_recovery(truth.coefficients, data)
+    assert all(coef[k]["max_rel"] == 0.0 for k in ("m_ax", "m_ay", "c_q", "c_l"))
+    assert coef["_coverage"]["sigma_max"] > coef["_coverage"]["sigma_min"] > 0
+    flow = flow_recovery(truth.flow, data)
+    assert flow["rel_l2"] == 0.0 and flow["points"] > 100
+
+
+def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
+    import json
+
+    from fhnn.cli.app import main
+    from fhnn.data.dataset import write_dataset
+
+    path = write_dataset(data, tmp_path / "d.h5")
+
+    def run(argv):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        return info.value.code, capsys.readouterr()
+
+    code, _ = run(
+        [
+            "train",
+            str(path),
+            "-o",
+            str(tmp_path / "run"),
+            "--steps",
+            "20",
+            "--set",
+            "width=8",
+            "--set",
+            "val_every=10",
+            "-q",
+        ]
+    )
+    assert code == 0
+    code, out = run(["evaluate", str(tmp_path / "run"), "--horizons", "1,2", "--json"])
+    assert code == 0
+    result = json.loads(out.out)
+    assert set(result) == {"1", "2", "diverged_count"}
+    assert {"rmse_pos", "rmse_vel", "ade", "fde", "within_eps", "mse_pos", "outside_training"} <= set(
+        result["1"]
+    )
+    code, out = run(["inspect", str(tmp_path / "run")])
+    assert code == 0 and "flow: relative L2 error" in out.out
+    for name in ("flow.png", "coefficients.png"):
+        assert (tmp_path / "run" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    code, out = run(["evaluate", str(tmp_path / "run"), "--horizons", "1,99"])
+    assert code == 2 and "horizon 99 s exceeds" in out.err
+    code, out = run(["train", str(path), "-o", str(tmp_path / "r2"), "--ablation", "nope"])
+    assert code == 2 and out.err.startswith("error: fhnn.ablation must be one of")

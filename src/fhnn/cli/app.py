@@ -196,7 +196,7 @@ def train(
         err.print(f"resuming {out} from step {run.state.step}")
     else:
         run = Run.create(out, dataset, str(data), model, model_config, train_config)
-    total = run.train_config.steps
+    total = run.train_config.steps + run.train_config.lbfgs_steps
     with Progress(
         TextColumn("training"),
         BarColumn(),
@@ -210,10 +210,13 @@ def train(
 
         def progress(state: Any, record: dict[str, float]) -> None:
             val = record["val_deriv"] + record["val_step"]
-            losses = (
-                f"deriv {record['train_deriv']:.2e} step {record['train_step']:.2e} "
-                f"flow {record.get('train_flow', 0.0):.2e} | val {val:.2e}"
-            )
+            if record.get("phase") == "lbfgs":
+                losses = f"L-BFGS loss {record['train_loss']:.2e} | val {val:.2e}"
+            else:
+                losses = (
+                    f"deriv {record['train_deriv']:.2e} step {record['train_step']:.2e} "
+                    f"flow {record.get('train_flow', 0.0):.2e} | val {val:.2e}"
+                )
             bar.update(task, completed=state.step, losses=losses)
 
         run.train(dataset, callback=progress)
@@ -262,6 +265,54 @@ def evaluate(
     for h, m in result["horizons"].items():
         table.add_row(h, *(f"{m[c]:.3g}" for c in cols))
     stdout.print(table)
+
+
+@app.command()
+def inspect(
+    run_dir: Annotated[Path, typer.Argument(help="Run folder written by `fhnn train`.")],
+    data: Annotated[
+        Path | None, typer.Argument(help="Data set [default: the one the run was trained on]")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the recovery numbers as JSON.")] = False,
+) -> None:
+    """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN."""
+    from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+    from fhnn.experiments.figures import coefficient_figure, flow_figure
+    from fhnn.training.run import Run
+
+    run = Run.load(run_dir)
+    dataset = read_dataset(data if data is not None else run.meta["data"])
+    model = run.state.best_model
+    coef = coefficient_recovery(model.coefficients, dataset)
+    flow = flow_recovery(model.flow, dataset)
+    truth = dataset.equations()
+    figures = flow_figure(model.flow, truth.flow, dataset, run_dir / "flow")
+    figures += coefficient_figure(model.coefficients, truth.coefficients, dataset, run_dir / "coefficients")
+    if as_json:
+        typer.echo(
+            json.dumps({"coefficients": coef, "flow": flow, "figures": [str(f) for f in figures]}, indent=2)
+        )
+        return
+    table = Table(title="coefficients over the (r, σ) the training data covers", title_justify="left")
+    for col in ("coefficient", "learned range", "true range", "mean rel. error", "max rel. error"):
+        table.add_column(col, justify="right")
+    for name in ("m_ax", "m_ay", "c_q", "c_l"):
+        c = coef[name]
+        table.add_row(
+            name,
+            f"{_fmt(c['learned_min'])} – {_fmt(c['learned_max'])}",
+            f"{_fmt(c['true_min'])} – {_fmt(c['true_max'])}",
+            f"{c['mean_rel']:.2%}",
+            f"{c['max_rel']:.2%}",
+        )
+    stdout.print(table)
+    if dataset.actuation == "none":
+        stdout.print(
+            "note: trained without actuation — only the ratios c / (M + m_a) are identifiable; "
+            "the absolute masses and drag coefficients above are not measured quantities."
+        )
+    stdout.print(f"flow: relative L2 error {flow['rel_l2']:.3%} over {flow['points']} grid points")
+    stdout.print("figures: " + ", ".join(str(f) for f in figures))
 
 
 def _fmt(x: float) -> str:

@@ -10,6 +10,19 @@ parts in place of the unknown physics:
   ``C · sigmoid(softplus(z)/C)``, which only reaches ``(C/2, C)`` (SPEC §4.1 erratum); it remains
   available as ``cap_map="sigmoid"``.
 
+Identifiability: the drag force is ``−(½ρA c_q(σ) σ + c_l) v_rel``; if both ``c_q`` and ``c_l`` were
+free functions of ``(r, σ)`` only their combination ``½ρA c_q σ + c_l`` could be learned from data
+(any ``c_l(σ)`` can be traded against ``c_q(σ)``). By default ``c_l`` is therefore one learned
+constant (``linear_drag="constant"``) — it is then the ``σ → 0`` limit of the drag and ``c_q(σ)``
+is identified too; ``linear_drag="net"`` is the paper's form, all four outputs of ``g_φ(r, σ)``.
+
+Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
+constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
+``ψ_lin = ½ xᵀQx + bᵀx`` (uniform stream, rotation, strain; 5 parameters) — and the smoothness
+penalty acts on the MLP part only, so a flow with constant curvature (solid-body rotation has
+``‖Hψ‖²_F = 2Ω²``) is not biased towards zero curvature and extrapolates exactly.
+``far_field="none"`` is the paper's plain MLP.
+
 Known body constants ``M, ρ, A, V`` come from the data set. Ablations (paper Table "ablation"):
 ``no_added_mass`` (m_a ≡ 0), ``no_linear_drag`` (c_l ≡ 0), ``no_flow`` (u ≡ 0), ``shallow`` (one
 hidden layer), ``relu`` (ReLU activations).
@@ -52,6 +65,9 @@ class FHNNConfig(Config):
         time_dependent: ψ(x, y, t) instead of ψ(x, y); None: from the data set's scenario.
         fluid_inertia: Morison inertia term from the learned ψ; None: from the data set's body.
         init_coefficients: coefficient values the net starts at (its last bias is set so).
+        linear_drag: "constant" (one learned c_l; identifiable) or "net" (c_l(r, σ) from g_φ, as in
+            the paper; only ½ρA c_q σ + c_l is then identifiable).
+        far_field: "linear" (MLP plus a learned linear flow, penalty on the MLP part) or "none".
     """
 
     config_name = "fhnn"
@@ -65,6 +81,8 @@ class FHNNConfig(Config):
     time_dependent: bool | None = None
     fluid_inertia: bool | None = None
     init_coefficients: tuple[float, float, float, float] = (10.0, 10.0, 0.5, 2.0)
+    linear_drag: Literal["constant", "net"] = "constant"
+    far_field: Literal["linear", "none"] = "linear"
 
     def validate(self) -> None:
         check_positive(self, "width", "depth")
@@ -93,23 +111,39 @@ def _activation(name: str):
 
 
 class StreamNet(AbstractFlow):
-    """``ψ_θ(x, y[, t]) = psi_scale · MLP((x, y)/length_scale[, t/time_scale])`` [m²/s]."""
+    """``ψ_θ = psi_scale · [MLP(ξ[, t/time_scale]) + ½ ξᵀQξ + bᵀξ]`` [m²/s], ``ξ = x / length_scale``.
+
+    ``quadratic = (Q_xx, Q_xy, Q_yy)`` and ``linear = b`` are the far-field linear flow (None: the
+    paper's plain MLP).
+    """
 
     mlp: eqx.nn.MLP
     length_scale: float = eqx.field(static=True)
     psi_scale: float = eqx.field(static=True)
     time_scale: float = eqx.field(static=True)
     uses_time: bool = eqx.field(static=True)
+    quadratic: Array | None = None
+    linear: Array | None = None
 
     @property
     def time_dependent(self) -> bool:
         return self.uses_time
 
-    def stream(self, xy: Array, t: Array) -> Array:
+    def net_stream(self, xy: Array, t: Array) -> Array:
+        """The MLP part of ψ_θ [m²/s] (what the smoothness penalty acts on)."""
         inp = jnp.asarray(xy) / self.length_scale
         if self.uses_time:
             inp = jnp.concatenate([inp, jnp.reshape(jnp.asarray(t, inp.dtype) / self.time_scale, (1,))])
         return self.psi_scale * self.mlp(inp)[0]
+
+    def stream(self, xy: Array, t: Array) -> Array:
+        psi = self.net_stream(xy, t)
+        if self.quadratic is not None and self.linear is not None:
+            xi = jnp.asarray(xy) / self.length_scale
+            q = self.quadratic
+            far = 0.5 * (q[0] * xi[0] ** 2 + 2.0 * q[1] * xi[0] * xi[1] + q[2] * xi[1] ** 2)
+            psi = psi + self.psi_scale * (far + jnp.dot(self.linear, xi))
+        return psi
 
 
 class CoefficientNet(AbstractCoefficients):
@@ -121,9 +155,12 @@ class CoefficientNet(AbstractCoefficients):
     mask: tuple[float, ...] = eqx.field(static=True)
     r_scale: float = eqx.field(static=True)
     sigma_scale: float = eqx.field(static=True)
+    c_l_raw: Array | None = None
 
     def __call__(self, r: Array, sigma: Array) -> Array:
         z = self.mlp(jnp.stack([r / self.r_scale, sigma / self.sigma_scale]))
+        if self.c_l_raw is not None:  # constant linear drag: one learned raw value
+            z = z.at[3].set(self.c_l_raw)
         return cap(z, jnp.asarray(self.caps), self.cap_map) * jnp.asarray(self.mask)
 
 
@@ -158,10 +195,11 @@ class FHNN(AbstractVectorField):
         return self.eom(state, t, force)
 
     def regularization(self, states: Array, ts: Array) -> dict[str, Array]:
-        """``{"flow": mean ‖Hψ‖²_F}`` at the batch positions (zero without a learned flow)."""
+        """``{"flow": mean ‖Hψ_net‖²_F}`` at the batch positions, over the MLP part of ψ_θ (all of it
+        when ``far_field="none"``); zero without a learned flow."""
         if not isinstance(self.flow, StreamNet):
             return {"flow": jnp.zeros(())}
-        hess = jax.vmap(jax.jacrev(jax.grad(self.flow.stream)))(states[:, :2], ts)
+        hess = jax.vmap(jax.jacrev(jax.grad(self.flow.net_stream)))(states[:, :2], ts)
         return {"flow": jnp.mean(jnp.sum(hess**2, axis=(1, 2)))}
 
 
@@ -209,6 +247,8 @@ def build_fhnn(
             psi_scale=speed_scale * length_scale,
             time_scale=time_scale,
             uses_time=time_dependent,
+            quadratic=jnp.zeros(3) if config.far_field == "linear" else None,
+            linear=jnp.zeros(2) if config.far_field == "linear" else None,
         )
     mask = [1.0, 1.0, 1.0, 1.0]
     if config.ablation == "no_added_mass":
@@ -229,6 +269,7 @@ def build_fhnn(
         mask=tuple(mask),
         r_scale=length_scale,
         sigma_scale=max(speed_scale, 1e-6),
+        c_l_raw=jnp.asarray(bias[3]) if config.linear_drag == "constant" else None,
     )
     eom = EquationsOfMotion(
         flow=flow,

