@@ -153,7 +153,7 @@ def scenarios() -> None:
 def train(
     data: Annotated[Path, typer.Argument(help="Training data set (HDF5).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Run folder to create (or resume).")],
-    model: Annotated[str, typer.Option(help="Model: fhnn.")] = "fhnn",
+    model: Annotated[str, typer.Option(help="Model: fhnn|node|hnn|lnn|dhnn|sindy.")] = "fhnn",
     ablation: Annotated[
         str, typer.Option(help="none|no_added_mass|no_linear_drag|no_flow|shallow|relu")
     ] = "none",
@@ -168,23 +168,20 @@ def train(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
 ) -> None:
     """Train a model on a data set; resumes if RUN already holds a checkpoint of the same model."""
-    from fhnn.models.fhnn import FHNNConfig
-    from fhnn.training.run import Run
+    from fhnn.training.run import MODELS, Run
     from fhnn.training.trainer import TrainConfig
 
-    if model != "fhnn":
-        raise ConfigError(f"unknown model {model!r}; available: fhnn")
+    if model not in MODELS:
+        raise ConfigError(f"unknown model {model!r}; available: {', '.join(MODELS)}")
+    config_class = MODELS[model]
     options = parse_params(set_ or [])
-    model_fields, train_fields = set(FHNNConfig.field_names()), set(TrainConfig.field_names())
-    unknown = [k for k in options if k not in model_fields | train_fields]
-    if unknown:
-        raise ConfigError(
-            f"unknown option {unknown[0]!r} for --set; model options: "
-            f"{', '.join(sorted(model_fields))}; training options: {', '.join(sorted(train_fields))}"
-        )
-    model_config = FHNNConfig.from_dict(
-        {**{k: v for k, v in options.items() if k in model_fields}, "ablation": ablation}
-    )
+    model_fields, train_fields = set(config_class.field_names()), set(TrainConfig.field_names())
+    model_options = {k: v for k, v in options.items() if k in model_fields}
+    if ablation != "none":
+        if model != "fhnn":
+            raise ConfigError(f"--ablation applies to fhnn only, not {model!r}")
+        model_options["ablation"] = ablation
+    model_config = config_class.from_dict(model_options)
     train_opts = {k: v for k, v in options.items() if k in train_fields}
     train_opts["seed"] = seed
     if steps is not None:
@@ -209,14 +206,12 @@ def train(
         task = bar.add_task("train", total=total, completed=run.state.step if run.state else 0, losses="")
 
         def progress(state: Any, record: dict[str, float]) -> None:
-            val = record["val_deriv"] + record["val_step"]
-            if record.get("phase") == "lbfgs":
-                losses = f"L-BFGS loss {record['train_loss']:.2e} | val {val:.2e}"
-            else:
-                losses = (
-                    f"deriv {record['train_deriv']:.2e} step {record['train_step']:.2e} "
-                    f"flow {record.get('train_flow', 0.0):.2e} | val {val:.2e}"
-                )
+            terms = " ".join(
+                f"{k[6:]} {v:.2e}" for k, v in record.items() if k.startswith("train_") and k != "train_loss"
+            )
+            phase = "L-BFGS " if record.get("phase") == "lbfgs" else ""
+            terms = terms or f"loss {record['train_loss']:.2e}"
+            losses = f"{phase}{terms} | val {record['val_total']:.2e}"
             bar.update(task, completed=state.step, losses=losses)
 
         run.train(dataset, callback=progress)
@@ -281,6 +276,8 @@ def inspect(
     from fhnn.training.run import Run
 
     run = Run.load(run_dir)
+    if run.kind != "fhnn":
+        raise ConfigError(f"inspect needs an fhnn run; a {run.kind!r} model has no flow or coefficients")
     dataset = read_dataset(data if data is not None else run.meta["data"])
     model = run.state.best_model
     coef = coefficient_recovery(model.coefficients, dataset)

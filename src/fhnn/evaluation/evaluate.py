@@ -14,6 +14,7 @@ from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import trajectory_metrics
 from fhnn.evaluation.rollout import rollout
 from fhnn.models.base import AbstractVectorField
+from fhnn.training.trainer import LossScales, Windows
 
 
 def evaluate(
@@ -36,7 +37,11 @@ def evaluate(
     longest = max(horizons)
     if longest > data.t[-1] + 1e-9:
         raise ConfigError(f"horizon {longest:g} s exceeds the {split} trajectories' length {data.t[-1]:g} s")
-    ro = rollout(model, data, until=longest)
+    scales = None
+    if hasattr(model, "autoregressive_rollout"):
+        sc = LossScales.of(Windows.of(dataset.train))
+        scales = (jnp.asarray(sc.deriv), jnp.asarray(sc.step))
+    ro = rollout(model, data, until=longest, scales=scales)
     truth = data.states_clean[:, : ro.t.size]
     eom = dataset.equations()
     train_cov = coverage(eom, dataset.train)

@@ -52,6 +52,7 @@ def rollout(
     rtol: float = ROLLOUT_TOL,
     atol: float = ROLLOUT_TOL,
     from_clean: bool = True,
+    scales: tuple | None = None,
 ) -> Rollout:
     """Integrate ``model`` from every trajectory's state at ``t = 0`` up to ``until`` [s].
 
@@ -61,7 +62,13 @@ def rollout(
         until: last time [s]; default: the trajectories' end.
         rtol, atol: integrator tolerances.
         from_clean: start from the clean first state (SPEC §5) rather than the observed one.
+        scales: training loss scales, needed by discrete models (DHN) to fit a trajectory's code.
     """
+    if hasattr(model, "autoregressive_rollout"):  # discrete models (DHN) roll themselves out
+        if scales is None:
+            raise ValueError("a discrete model's rollout needs the training loss scales")
+        t, states, ok = model.autoregressive_rollout(split, until, scales)
+        return Rollout(t=np.asarray(t), states=np.asarray(states), ok=np.asarray(ok))
     t = split.t if until is None else split.t[: np.searchsorted(split.t, until - 1e-9) + 1]
     y0 = (split.states_clean if from_clean else split.states)[:, 0]
     ys, ok = _rollout_batch(model, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol)

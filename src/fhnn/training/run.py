@@ -27,20 +27,46 @@ import jax
 import numpy as np
 
 from fhnn import __version__
+from fhnn.config import Config
 from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.models.base import AbstractVectorField
+from fhnn.models.baselines import MLPConfig, build_baseline
+from fhnn.models.dhn import DHNConfig, build_dhn
 from fhnn.models.fhnn import FHNNConfig, build_fhnn
+from fhnn.models.sindy import SINDyConfig, empty_sindy, fit_sindy
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
 RUN_FORMAT = "fhnn-run"
-MODELS: dict[str, type[FHNNConfig]] = {"fhnn": FHNNConfig}
+#: Model kinds trainable by gradient descent, with their configuration classes.
+MODELS: dict[str, type[Config]] = {
+    "fhnn": FHNNConfig,
+    "node": MLPConfig,
+    "hnn": MLPConfig,
+    "lnn": MLPConfig,
+    "dhnn": MLPConfig,
+    "sindy": SINDyConfig,
+    "dhn": DHNConfig,
+}
 
 
-def build_arguments(dataset: Dataset) -> dict[str, Any]:
-    """Data-derived arguments of :func:`build_fhnn`: body constants and input scales."""
-    body = dataset.body()
+def build_arguments(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
+    """Data-derived arguments of a model's builder: for FHNN the body constants and input
+    scales, for the baselines the training data's statistics."""
     train = dataset.train
+    if kind != "fhnn":
+        states = train.states.reshape(-1, 4)
+        std = states.std(axis=0)
+        return {
+            "n_traj": train.n_traj,
+            "step_std": np.diff(train.states, axis=1).reshape(-1, 4).std(axis=0).tolist(),
+            "state_mean": states.mean(axis=0).tolist(),
+            "state_std": std.tolist(),
+            "force_std": float(max(train.forces.std(), 1e-3)),
+            "deriv_std": train.derivs.reshape(-1, 4).std(axis=0).tolist(),
+            "energy": float(np.mean(std[2:] ** 2)),
+        }
+    body = dataset.body()
     pos = train.states[..., :2]
     return {
         "mass": body.mass,
@@ -56,9 +82,17 @@ def build_arguments(dataset: Dataset) -> dict[str, Any]:
 
 
 def build_model(kind: str, config: Any, args: dict[str, Any], seed: int) -> AbstractVectorField:
-    if kind != "fhnn":
+    """A fresh model ``kind`` from its configuration, data-derived arguments and seed."""
+    if kind not in MODELS:
         raise ConfigError(f"unknown model {kind!r}; available: {', '.join(MODELS)}")
-    return build_fhnn(config, **args, key=jax.random.PRNGKey(seed))
+    key = jax.random.PRNGKey(seed)
+    if kind == "fhnn":
+        return build_fhnn(config, **args, key=key)
+    if kind == "sindy":
+        return empty_sindy(config)
+    if kind == "dhn":
+        return build_dhn(config, args, args["n_traj"], key)
+    return build_baseline(kind, config, args, key)
 
 
 def check_trainable(dataset: Dataset) -> None:
@@ -108,7 +142,7 @@ class Run:
             raise ConfigError(f"output folder '{folder.parent}' does not exist")
         check_trainable(dataset)
         meta = {"data": str(data_path), "scenario": dataset.scenario, "data_seed": dataset.seed}
-        return cls(folder, kind, model_config, train_config, build_arguments(dataset), meta)
+        return cls(folder, kind, model_config, train_config, build_arguments(dataset, kind), meta)
 
     def skeleton(self) -> AbstractVectorField:
         return build_model(self.kind, self.model_config, self.args, self.train_config.seed)
@@ -121,7 +155,10 @@ class Run:
         callback: Callable[[TrainState, dict[str, float]], None] | None = None,
         save: bool = True,
     ) -> TrainState:
-        trainer = Trainer(self.train_config, dataset.train, dataset.val)
+        window = 2 if self.kind == "sindy" else self.skeleton().window
+        trainer = Trainer(self.train_config, dataset.train, dataset.val, window=window)
+        if self.kind == "sindy":  # a regression, not gradient descent: fitted in one go
+            return self._fit_sindy(trainer, dataset, save)
         if self.state is None:
             self.state = trainer.init(self.skeleton())
 
@@ -140,6 +177,22 @@ class Run:
             self.state = trainer.polish(self.state, callback=callback)
             if save:
                 self.save(polished=True)
+        return self.state
+
+    def _fit_sindy(self, trainer: Trainer, dataset: Dataset, save: bool) -> TrainState:
+        model, equations = fit_sindy(self.model_config, dataset.train)
+        val = trainer.validate(model)
+        record = {"step": 1, **{f"val_{k}": v for k, v in val.items()}, "equations": equations}
+        self.state = TrainState(
+            model=model,
+            opt_state=None,
+            step=1,
+            best_model=model,
+            best_val=val["deriv"] + val["step"],
+            history=[record],
+        )
+        if save:
+            self.save()
         return self.state
 
     def save(self, *, polished: bool = False) -> None:
@@ -192,10 +245,10 @@ class Run:
         try:
             model = eqx.tree_deserialise_leaves(folder / "model.eqx", skeleton)
             best = eqx.tree_deserialise_leaves(folder / "best.eqx", skeleton)
-            trainer_like = Trainer.optimizer_for(train_config)
-            opt_state = eqx.tree_deserialise_leaves(
-                folder / "opt_state.eqx", trainer_like.init(eqx.filter(skeleton, eqx.is_array))
-            )
+            opt_state = None
+            if kind != "sindy":
+                like = Trainer.optimizer_for(train_config).init(eqx.filter(skeleton, eqx.is_array))
+                opt_state = eqx.tree_deserialise_leaves(folder / "opt_state.eqx", like)
         except (OSError, ValueError, RuntimeError) as exc:
             raise DataFormatError(f"{folder}: checkpoint files missing or incompatible ({exc})") from None
         run.state = TrainState(

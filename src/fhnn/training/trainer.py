@@ -36,8 +36,6 @@ from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
 from fhnn.data.dataset import Split
 from fhnn.errors import ConfigError
 from fhnn.models.base import AbstractVectorField
-from fhnn.physics.actuation import actuation_force
-from fhnn.physics.integrators import rk4_step
 
 Array = jax.Array
 
@@ -96,38 +94,46 @@ class TrainConfig(Config):
 
 
 @dataclass(frozen=True)
-class Pairs:
-    """Transition pairs of a split: ``(s_k, t_k, s_{k+1})`` with forcing and true derivatives.
+class Windows:
+    """``W`` consecutive samples of a split, for every start ``k`` (trajectory-level windows).
 
-    Shapes: ``s``, ``s_next``, ``deriv`` ``(P, 4)``; ``t``, ``dt`` ``(P,)``; ``act`` ``(P, 2, 3, 3)``.
+    Shapes: ``s``, ``deriv`` ``(P, W, 4)``; ``t`` ``(P, W)``; ``forces`` ``(P, W, 2)``; ``act``
+    ``(P, 2, 3, 3)``; ``traj`` ``(P,)`` (index of the trajectory in its split). ``W = 2`` gives
+    transition pairs.
     """
 
     s: np.ndarray
     t: np.ndarray
-    dt: np.ndarray
-    s_next: np.ndarray
     deriv: np.ndarray
+    forces: np.ndarray
     act: np.ndarray
+    traj: np.ndarray
+
+    FIELDS = ("s", "t", "deriv", "forces", "act", "traj")
 
     @classmethod
-    def of(cls, split: Split) -> Pairs:
+    def of(cls, split: Split, window: int = 2) -> Windows:
         n, T = split.n_traj, split.n_times
-        s = split.states[:, :-1].reshape(-1, 4)
-        s_next = split.states[:, 1:].reshape(-1, 4)
-        t = np.broadcast_to(split.t[:-1], (n, T - 1)).reshape(-1)
-        dt = np.broadcast_to(np.diff(split.t), (n, T - 1)).reshape(-1)
-        deriv = split.derivs[:, :-1].reshape(-1, 4)
-        act = np.repeat(split.actuation, T - 1, axis=0)
-        return cls(s=s, t=t, dt=dt, s_next=s_next, deriv=deriv, act=act)
+        if T < window:
+            raise ConfigError(f"trajectories of {T} samples are shorter than the model's window {window}")
+        starts = np.arange(T - window + 1)
+        idx = starts[:, None] + np.arange(window)[None, :]  # (K, W)
+        s = split.states[:, idx].reshape(-1, window, 4)
+        deriv = split.derivs[:, idx].reshape(-1, window, 4)
+        forces = split.forces[:, idx].reshape(-1, window, 2)
+        t = np.broadcast_to(split.t[idx], (n, *idx.shape)).reshape(-1, window)
+        act = np.repeat(split.actuation, starts.size, axis=0)
+        traj = np.repeat(np.arange(n), starts.size)
+        return cls(s=s, t=t, deriv=deriv, forces=forces, act=act, traj=traj)
 
     def __len__(self) -> int:
         return int(self.s.shape[0])
 
-    def subset(self, idx: np.ndarray) -> Pairs:
-        return Pairs(*(getattr(self, k)[idx] for k in ("s", "t", "dt", "s_next", "deriv", "act")))
+    def subset(self, idx: np.ndarray) -> Windows:
+        return Windows(*(getattr(self, k)[idx] for k in self.FIELDS))
 
     def as_jax(self) -> dict[str, Array]:
-        return {k: jnp.asarray(getattr(self, k)) for k in ("s", "t", "dt", "s_next", "deriv", "act")}
+        return {k: jnp.asarray(getattr(self, k)) for k in self.FIELDS}
 
 
 @dataclass(frozen=True)
@@ -138,28 +144,29 @@ class LossScales:
     step: np.ndarray
 
     @classmethod
-    def of(cls, pairs: Pairs) -> LossScales:
+    def of(cls, windows: Windows) -> LossScales:
         floor = lambda x: np.maximum(x, 1e-12)  # noqa: E731
-        return cls(deriv=floor(pairs.deriv.std(axis=0)), step=floor((pairs.s_next - pairs.s).std(axis=0)))
+        deriv = windows.deriv[:, 0]
+        step = windows.s[:, 1] - windows.s[:, 0]
+        return cls(deriv=floor(deriv.std(axis=0)), step=floor(step.std(axis=0)))
+
+
+#: Loss terms that are regularisers: weighted by the annealed ``lambda_flow``, left out of validation.
+REGULARIZERS = ("flow",)
 
 
 def loss_terms(
     model: AbstractVectorField, batch: dict[str, Array], scales: tuple[Array, Array]
 ) -> dict[str, Array]:
-    """The unweighted loss terms ``{"deriv", "step", <regularisation>}`` on a batch of pairs."""
-    deriv_scale, step_scale = scales
+    """The model's unweighted loss terms on a batch (see :meth:`AbstractVectorField.loss_terms`)."""
+    return model.loss_terms(batch, scales)
 
-    def one(s: Array, t: Array, dt: Array, a: Array) -> tuple[Array, Array]:
-        f = lambda x, tt: model(x, tt, actuation_force(a, tt))  # noqa: E731
-        return f(s, t), rk4_step(f, s, t, dt)
 
-    pred_d, pred_next = jax.vmap(one)(batch["s"], batch["t"], batch["dt"], batch["act"])
-    terms = {
-        "deriv": jnp.mean(((pred_d - batch["deriv"]) / deriv_scale) ** 2),
-        "step": jnp.mean(((pred_next - batch["s_next"]) / step_scale) ** 2),
-    }
-    terms.update(model.regularization(batch["s"], batch["t"]))
-    return terms
+def data_loss(terms: dict[str, Array], config: TrainConfig) -> Array:
+    """Weighted sum of the data terms: ``w_deriv·deriv + w_step·step`` plus any model-specific
+    objective term (weight 1); regularisers excluded."""
+    weights = {"deriv": config.w_deriv, "step": config.w_step}
+    return sum((weights.get(k, 1.0) * v for k, v in terms.items() if k not in REGULARIZERS), jnp.zeros(()))
 
 
 @dataclass
@@ -177,10 +184,10 @@ class TrainState:
 class Trainer:
     """Trains a model on the train split, validating on the val split."""
 
-    def __init__(self, config: TrainConfig, train: Split, val: Split) -> None:
+    def __init__(self, config: TrainConfig, train: Split, val: Split, *, window: int = 2) -> None:
         self.config = config
-        self.train_pairs = Pairs.of(train)
-        val_pairs = Pairs.of(val)
+        self.train_pairs = Windows.of(train, window)
+        val_pairs = Windows.of(val, window)
         if len(val_pairs) > config.val_pairs:
             idx = np.random.default_rng(config.seed).choice(len(val_pairs), config.val_pairs, replace=False)
             val_pairs = val_pairs.subset(np.sort(idx))
@@ -189,7 +196,8 @@ class Trainer:
         self.scales = (jnp.asarray(sc.deriv), jnp.asarray(sc.step))
         self.optimizer = self.optimizer_for(config)
         self._train = self.train_pairs.as_jax()
-        self._val = self.val_pairs.as_jax()
+        # a fixed key for the stochastic parts of a model's objective (DHN's denoising) on validation
+        self._val = {**self.val_pairs.as_jax(), "key": jax.random.PRNGKey(config.seed + 3)}
         self._key = jax.random.PRNGKey(config.seed + 1)
         self._step_fn = self._make_step()
         self._val_fn = eqx.filter_jit(lambda m: loss_terms(m, self._val, self.scales))
@@ -206,13 +214,12 @@ class Trainer:
         cfg = self.config
         n = min(cfg.lbfgs_pairs, len(self.train_pairs))
         idx = np.sort(np.random.default_rng(cfg.seed + 2).choice(len(self.train_pairs), n, replace=False))
-        batch = self.train_pairs.subset(idx).as_jax()
+        batch = {**self.train_pairs.subset(idx).as_jax(), "key": jax.random.PRNGKey(cfg.seed + 4)}
         params, static = eqx.partition(state.best_model, eqx.is_array)
         scales = self.scales
 
         def objective(p: Any) -> Array:
-            terms = loss_terms(eqx.combine(p, static), batch, scales)
-            return cfg.w_deriv * terms["deriv"] + cfg.w_step * terms["step"]
+            return data_loss(loss_terms(eqx.combine(p, static), batch, scales), cfg)
 
         opt = optax.lbfgs()
         value_and_grad = optax.value_and_grad_from_state(objective)
@@ -234,8 +241,8 @@ class Trainer:
                 record = {"step": cfg.steps + done, "train_loss": float(value), "phase": "lbfgs"}
                 record.update({f"val_{key}": v for key, v in val.items()})
                 state.history.append(record)
-                if val["deriv"] + val["step"] < state.best_val:
-                    state.best_val, state.best_model = val["deriv"] + val["step"], model
+                if val["total"] < state.best_val:
+                    state.best_val, state.best_model = val["total"], model
                 state.model, state.step = model, cfg.steps + done
                 if callback is not None:
                     callback(state, record)
@@ -254,12 +261,13 @@ class Trainer:
         def step(model: AbstractVectorField, opt_state: Any, i: Array) -> tuple[Any, Any, dict[str, Array]]:
             idx = jax.random.randint(jax.random.fold_in(key, i), (cfg.batch_size,), 0, n)
             batch = {k: v[idx] for k, v in data.items()}
+            batch["key"] = jax.random.fold_in(jax.random.fold_in(key, i), 1)
             weight = cfg.flow_weight(i)
 
             def total(m: AbstractVectorField) -> tuple[Array, dict[str, Array]]:
                 terms = loss_terms(m, batch, scales)
-                reg = sum((v for k, v in terms.items() if k not in ("deriv", "step")), jnp.zeros(()))
-                loss = cfg.w_deriv * terms["deriv"] + cfg.w_step * terms["step"] + weight * reg
+                reg = sum((terms[k] for k in REGULARIZERS if k in terms), jnp.zeros(()))
+                loss = data_loss(terms, cfg) + weight * reg
                 return loss, {**terms, "loss": loss}
 
             grads, terms = eqx.filter_grad(total, has_aux=True)(model)
@@ -275,8 +283,10 @@ class Trainer:
         )
 
     def validate(self, model: AbstractVectorField) -> dict[str, float]:
-        terms = self._val_fn(model)
-        return {k: float(v) for k, v in terms.items()}
+        """Loss terms on the validation windows, and ``total``: their unweighted data sum."""
+        terms = {k: float(v) for k, v in self._val_fn(model).items()}
+        terms["total"] = sum(v for k, v in terms.items() if k not in REGULARIZERS)
+        return terms
 
     def run(
         self,
@@ -295,7 +305,7 @@ class Trainer:
             done = i + 1
             if done % cfg.val_every == 0 or done == cfg.steps:
                 val = self.validate(model)
-                val_total = val["deriv"] + val["step"]
+                val_total = val["total"]
                 record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items()}}
                 record.update({f"val_{k}": v for k, v in val.items()})
                 record["lr"] = float(cfg.schedule()(i))

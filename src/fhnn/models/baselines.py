@@ -1,0 +1,142 @@
+"""Baselines behind the same vector-field interface (SPEC §4.2).
+
+- :class:`NeuralODE` (Chen et al. 2018): an MLP ``(s, F_ext) → ṡ``, all four components.
+- :class:`HNN` (Greydanus et al. 2019): ``H_θ(q, p)``, ``q = (x, y)``, ``p = v``;
+  ``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext``.
+- :class:`LNN` (Cranmer et al. 2020): ``L_θ(q, q̇)``;
+  ``q̈ = (∇q̇∇q̇ᵀL)⁻¹ [∇q L − (∇q∇q̇ᵀL) q̇ + F_ext]`` — a linear solve, no explicit inverse and no
+  conditioning fix: its ill-conditioning is part of what the comparison shows.
+- :class:`DissipativeHNN` (Sosanya & Greydanus 2022): ``H_θ`` plus a Rayleigh dissipation
+  function ``D_θ(q, p) ≥ 0``; ``ṗ = −∂H/∂q − ∂D/∂p + F_ext``.
+
+Inputs are standardised with the training data's statistics (stored with the model), so every
+network sees O(1) inputs; the scalar functions ``H``, ``L``, ``D`` are otherwise unconstrained.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from fhnn.config import Config, check_positive, frozen_config
+from fhnn.models.base import AbstractVectorField
+
+Array = jax.Array
+
+
+@frozen_config
+class MLPConfig(Config):
+    """Size of a baseline's network: ``depth`` hidden layers of ``width`` units."""
+
+    config_name = "baseline"
+
+    width: int = 64
+    depth: int = 3
+    activation: Literal["tanh", "softplus"] = "tanh"
+
+    def validate(self) -> None:
+        check_positive(self, "width", "depth")
+
+
+def _mlp(config: MLPConfig, n_in: int, n_out: int, key: Array) -> eqx.nn.MLP:
+    act = jnp.tanh if config.activation == "tanh" else jax.nn.softplus
+    return eqx.nn.MLP(n_in, n_out, config.width, config.depth, activation=act, key=key)
+
+
+class Standardiser(eqx.Module):
+    """``(s − mean) / std`` for states ``(4,)``; forces divided by ``force_std``."""
+
+    mean: tuple[float, ...] = eqx.field(static=True)
+    std: tuple[float, ...] = eqx.field(static=True)
+    force_std: float = eqx.field(static=True)
+
+    def state(self, s: Array) -> Array:
+        return (s - jnp.asarray(self.mean)) / jnp.asarray(self.std)
+
+    def force(self, f: Array) -> Array:
+        return f / self.force_std
+
+
+class NeuralODE(AbstractVectorField):
+    """Black-box ``ṡ = deriv_std · MLP(standardised s, F_ext)``."""
+
+    mlp: eqx.nn.MLP
+    norm: Standardiser
+    deriv_std: tuple[float, ...] = eqx.field(static=True)
+
+    def __call__(self, state: Array, t: Array, force: Array) -> Array:
+        inp = jnp.concatenate([self.norm.state(state), self.norm.force(force)])
+        return jnp.asarray(self.deriv_std) * self.mlp(inp)
+
+
+class HNN(AbstractVectorField):
+    """``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext`` with ``H = energy_scale · MLP(standardised q, p)``."""
+
+    mlp: eqx.nn.MLP
+    norm: Standardiser
+    energy_scale: float = eqx.field(static=True)
+
+    def hamiltonian(self, s: Array) -> Array:
+        return self.energy_scale * self.mlp(self.norm.state(s))[0]
+
+    def __call__(self, state: Array, t: Array, force: Array) -> Array:
+        g = jax.grad(self.hamiltonian)(state)
+        return jnp.concatenate([g[2:], -g[:2] + force])
+
+
+class DissipativeHNN(AbstractVectorField):
+    """HNN plus Rayleigh dissipation: ``ṗ = −∂H/∂q − ∂D/∂p + F_ext``, ``D = softplus(MLP) ≥ 0``."""
+
+    hnn: HNN
+    dissipation: eqx.nn.MLP
+
+    def rayleigh(self, s: Array) -> Array:
+        return self.hnn.energy_scale * jax.nn.softplus(self.dissipation(self.hnn.norm.state(s))[0])
+
+    def __call__(self, state: Array, t: Array, force: Array) -> Array:
+        g = jax.grad(self.hnn.hamiltonian)(state)
+        d = jax.grad(self.rayleigh)(state)
+        return jnp.concatenate([g[2:], -g[:2] - d[2:] + force])
+
+
+class LNN(AbstractVectorField):
+    """Euler–Lagrange accelerations of ``L = energy_scale · MLP(standardised q, q̇)``."""
+
+    mlp: eqx.nn.MLP
+    norm: Standardiser
+    energy_scale: float = eqx.field(static=True)
+
+    def lagrangian(self, q: Array, qd: Array) -> Array:
+        return self.energy_scale * self.mlp(self.norm.state(jnp.concatenate([q, qd])))[0]
+
+    def __call__(self, state: Array, t: Array, force: Array) -> Array:
+        q, qd = state[:2], state[2:]
+        hess_qd = jax.hessian(self.lagrangian, argnums=1)(q, qd)
+        grad_q = jax.grad(self.lagrangian, argnums=0)(q, qd)
+        mixed = jax.jacfwd(jax.grad(self.lagrangian, argnums=1), argnums=0)(q, qd)  # ∂²L/∂q̇∂q
+        qdd = jnp.linalg.solve(hess_qd, grad_q - mixed @ qd + force)
+        return jnp.concatenate([qd, qdd])
+
+
+def build_baseline(kind: str, config: MLPConfig, stats: dict, key: Array) -> AbstractVectorField:
+    """A fresh baseline ``kind`` (node, hnn, lnn, dhnn) for data with statistics ``stats``.
+
+    ``stats``: ``state_mean``, ``state_std`` (4 each), ``force_std``, ``deriv_std`` (4), ``energy``.
+    """
+    norm = Standardiser(
+        mean=tuple(stats["state_mean"]), std=tuple(stats["state_std"]), force_std=stats["force_std"]
+    )
+    k1, k2 = jax.random.split(key)
+    if kind == "node":
+        return NeuralODE(mlp=_mlp(config, 6, 4, k1), norm=norm, deriv_std=tuple(stats["deriv_std"]))
+    if kind in ("hnn", "dhnn"):
+        hnn = HNN(mlp=_mlp(config, 4, 1, k1), norm=norm, energy_scale=stats["energy"])
+        if kind == "hnn":
+            return hnn
+        return DissipativeHNN(hnn=hnn, dissipation=_mlp(config, 4, 1, k2))
+    if kind == "lnn":
+        return LNN(mlp=_mlp(config, 4, 1, k1), norm=norm, energy_scale=stats["energy"])
+    raise ValueError(kind)

@@ -1,0 +1,119 @@
+"""Each baseline learns the kind of system it is built for (on the shared trainer)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from fhnn.data.dataset import Split
+from fhnn.evaluation.rollout import rollout
+from fhnn.models.baselines import MLPConfig, build_baseline
+from fhnn.physics.actuation import actuation_force, no_actuation, sample_actuation
+from fhnn.physics.integrators import adaptive_solve
+from fhnn.training.trainer import TrainConfig, Trainer
+
+OMEGA2 = 4.0  # spring constant per unit mass [1/s²]
+
+
+def spring(s, t, force, damping=0.0):
+    q, p = s[:2], s[2:]
+    return jnp.concatenate([p, -OMEGA2 * q - damping * p + force])
+
+
+def linear_system(s, t, force):
+    A = jnp.asarray(
+        [[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], [-1.0, 0.5, -0.3, 0.0], [0.2, -2.0, 0.1, -0.2]]
+    )
+    return A @ s + jnp.concatenate([jnp.zeros(2), force])
+
+
+def make_split(f, n, seed, forced):
+    rng = np.random.default_rng(seed)
+    y0 = rng.uniform(-1, 1, (n, 4))
+    act = sample_actuation(rng, n, amplitude=0.5) if forced else no_actuation(n)
+    ts = jnp.linspace(0.0, 3.0, 61)
+
+    def one(s0, a):
+        return adaptive_solve(lambda s, t: f(s, t, actuation_force(a, t)), s0, ts)[0]
+
+    states = np.asarray(jax.vmap(one)(jnp.asarray(y0), jnp.asarray(act)))
+    forces = np.asarray(
+        jax.vmap(jax.vmap(actuation_force, in_axes=(None, 0)), in_axes=(0, None))(jnp.asarray(act), ts)
+    )
+    derivs = np.asarray(
+        jax.vmap(jax.vmap(f))(
+            jnp.asarray(states), jnp.broadcast_to(ts, states.shape[:2]), jnp.asarray(forces)
+        )
+    )
+    return Split(
+        t=np.asarray(ts), states=states, states_clean=states, derivs=derivs, forces=forces, actuation=act
+    )
+
+
+def stats_of(split):
+    states = split.states.reshape(-1, 4)
+    std = states.std(axis=0)
+    return {
+        "state_mean": states.mean(axis=0).tolist(),
+        "state_std": std.tolist(),
+        "force_std": float(max(split.forces.std(), 1e-3)),
+        "deriv_std": split.derivs.reshape(-1, 4).std(axis=0).tolist(),
+        "energy": float(np.mean(std[2:] ** 2)),
+    }
+
+
+def fit(kind, f, forced, steps=1500):
+    train, val, test = (make_split(f, n, seed, forced) for n, seed in ((24, 0), (6, 1), (6, 2)))
+    model = build_baseline(kind, MLPConfig(width=32, depth=2), stats_of(train), jax.random.PRNGKey(0))
+    trainer = Trainer(
+        TrainConfig(steps=steps, val_every=250, lr=3e-3, batch_size=128, lbfgs_steps=100, lbfgs_pairs=1500),
+        train,
+        val,
+    )
+    state = trainer.polish(trainer.run(trainer.init(model)))
+    ro = rollout(state.best_model, test)
+    assert ro.ok.all()
+    return np.sqrt(np.mean((ro.states[..., :2] - test.states_clean[..., :2]) ** 2)), state
+
+
+@pytest.mark.parametrize("kind", ["hnn", "lnn"])
+def test_energy_models_fit_a_frictionless_forced_spring(kind):
+    err, _ = fit(kind, spring, forced=True)
+    assert err < 2e-2, err  # amplitude ~1 m over 3 s
+
+
+def test_dissipative_hnn_fits_a_damped_oscillator_and_plain_hnn_cannot():
+    damped = lambda s, t, f: spring(s, t, f, damping=0.8)  # noqa: E731
+    err_dhnn, _ = fit("dhnn", damped, forced=False)
+    err_hnn, _ = fit("hnn", damped, forced=False)
+    assert err_dhnn < 2e-2, err_dhnn
+    assert err_hnn > 3 * err_dhnn, (err_hnn, err_dhnn)  # a conservative model cannot dissipate
+
+
+def test_neural_ode_fits_a_linear_system():
+    err, _ = fit("node", linear_system, forced=True)
+    assert err < 2e-2, err
+
+
+def test_sindy_recovers_a_known_polynomial_system():
+    from fhnn.models.sindy import SINDyConfig, fit_sindy
+
+    def system(s, t, f):  # linear part plus two quadratic terms
+        return linear_system(s, t, f) + jnp.concatenate(
+            [jnp.zeros(2), jnp.asarray([0.3 * s[0] * s[1], -0.5 * s[2] ** 2])]
+        )
+
+    train = make_split(system, 10, 0, True)
+    field, equations = fit_sindy(SINDyConfig(degree=2), train)
+    powers = np.asarray(field.powers).astype(int).tolist()
+    coef = np.asarray(field.coefficients)
+
+    def c(row, exps):
+        return coef[row, powers.index(exps)]
+
+    assert c(2, [1, 0, 0, 0, 0, 0]) == pytest.approx(-1.0, abs=1e-8)
+    assert c(2, [1, 1, 0, 0, 0, 0]) == pytest.approx(0.3, abs=1e-8)
+    assert c(3, [0, 0, 2, 0, 0, 0]) == pytest.approx(-0.5, abs=1e-8)
+    assert c(3, [0, 0, 0, 0, 0, 1]) == pytest.approx(1.0, abs=1e-8)
+    assert np.count_nonzero(coef) == 2 + 5 + 6  # every other monomial thresholded away
+    assert "0.300 x y" in equations[2]
