@@ -52,8 +52,8 @@ def train(name: str, folder: Path, steps: int, options: dict):
     run.train(
         ds,
         callback=lambda s, r: print(
-            f"  step {r['step']:6d}  {time.perf_counter() - t0:6.0f} s  train {r['train_loss']:.2e}  "
-            f"val deriv {r['val_deriv']:.2e} step {r['val_step']:.2e}  flow {r.get('train_flow', 0):.2e}",
+            f"  {r.get('phase', 'adam'):5s} step {r['step']:6d}  {time.perf_counter() - t0:6.0f} s  "
+            f"train {r['train_loss']:.2e}  val {r['val_total']:.2e}  flow {r.get('train_flow', 0):.2e}",
             flush=True,
         ),
     )

@@ -176,7 +176,7 @@ def test_far_field_term_extrapolates_solid_body_rotation_and_is_not_penalised():
     model = build_model("fhnn", FHNNConfig(width=8), args, seed=0)
     flow = model.flow
     # zero the MLP, set Q so that ψ = −(Ω/2) r²: ψ_scale · ½ q ξ² with ξ = x / L
-    zeroed = jax.tree_util.tree_map(lambda x: jnp.zeros_like(x), flow.mlp)
+    zeroed = jax.tree_util.tree_map(lambda x: jnp.zeros_like(x) if eqx.is_array(x) else x, flow.mlp)
     q = -0.2 * flow.length_scale**2 / flow.psi_scale
     flow = eqx.tree_at(lambda f: (f.mlp, f.quadratic), flow, (zeroed, jnp.asarray([q, 0.0, q])))
     truth = SolidBodyRotation(omega=0.2)

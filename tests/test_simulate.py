@@ -103,6 +103,7 @@ def test_observation_noise_on_states_only(rng):
     assert abs(noise.mean()) < 1e-4
     clean = small_dataset("steady_vortex", obs_noise=0.0)
     np.testing.assert_array_equal(clean.train.states, clean.train.states_clean)
+    assert not np.shares_memory(clean.train.states, clean.train.states_clean)
 
 
 def test_obstacle_redraws_close_approaches_and_counts_them():

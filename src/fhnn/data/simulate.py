@@ -235,9 +235,9 @@ def simulate_dataset(
         derivs, forces = derivatives_and_forces(
             eom, jnp.asarray(clean[name]), jnp.asarray(ts), jnp.asarray(act[name])
         )
-        observed = clean[name]
+        observed = clean[name].copy()  # never the same array as states_clean
         if config.obs_noise > 0:
-            observed = observed + noise_rng.normal(0.0, config.obs_noise, observed.shape)
+            observed += noise_rng.normal(0.0, config.obs_noise, observed.shape)
         splits[name] = Split(
             t=ts,
             states=observed,

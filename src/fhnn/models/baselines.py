@@ -5,9 +5,11 @@
   ``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext``.
 - :class:`LNN` (Cranmer et al. 2020): ``L_θ(q, q̇)``;
   ``q̈ = (∇q̇∇q̇ᵀL)⁻¹ [∇q L − (∇q∇q̇ᵀL) q̇ + F_ext]`` — a linear solve, no explicit inverse and no
-  conditioning fix: its ill-conditioning is part of what the comparison shows.
-- :class:`DissipativeHNN` (Sosanya & Greydanus 2022): ``H_θ`` plus a Rayleigh dissipation
-  function ``D_θ(q, p) ≥ 0``; ``ṗ = −∂H/∂q − ∂D/∂p + F_ext``.
+  conditioning fix: its ill-conditioning is part of what the comparison shows. It is trained on
+  the derivative loss only, as in the original: through the four stages of an RK4 step the
+  ``q̇``-Hessian of a fresh network passes through singular matrices and the step loss is NaN.
+- :class:`DissipativeHNN` (after Sosanya & Greydanus 2022): ``H_θ`` plus a learned Rayleigh
+  dissipation function ``D = ½ pᵀ R_θ(q) p`` with ``R_θ ⪰ 0``; ``ṗ = −∂H/∂q − ∂D/∂p + F_ext``.
 
 Inputs are standardised with the training data's statistics (stored with the model), so every
 network sees O(1) inputs; the scalar functions ``H``, ``L``, ``D`` are otherwise unconstrained.
@@ -20,6 +22,7 @@ from typing import Literal
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from fhnn.config import Config, check_positive, frozen_config
 from fhnn.models.base import AbstractVectorField
@@ -88,29 +91,44 @@ class HNN(AbstractVectorField):
 
 
 class DissipativeHNN(AbstractVectorField):
-    """HNN plus Rayleigh dissipation: ``ṗ = −∂H/∂q − ∂D/∂p + F_ext``, ``D = softplus(MLP) ≥ 0``."""
+    """HNN plus a Rayleigh dissipation function ``D = ½ pᵀ R(q) p``, ``R = A Aᵀ ⪰ 0``:
+    ``ṗ = −∂H/∂q − R(q) p + F_ext``. ``A(q)`` is lower-triangular, from an MLP of ``q``."""
 
     hnn: HNN
     dissipation: eqx.nn.MLP
+    rate_scale: float = eqx.field(static=True)
 
-    def rayleigh(self, s: Array) -> Array:
-        return self.hnn.energy_scale * jax.nn.softplus(self.dissipation(self.hnn.norm.state(s))[0])
+    def rayleigh_matrix(self, q: Array) -> Array:
+        """``R(q)`` [1/s], shape ``(2, 2)``, positive semi-definite."""
+        xi = self.hnn.norm.state(jnp.concatenate([q, jnp.zeros(2)]))[:2]
+        a = self.dissipation(xi)
+        A = jnp.asarray([[a[0], 0.0], [a[1], a[2]]])
+        return self.rate_scale * A @ A.T
 
     def __call__(self, state: Array, t: Array, force: Array) -> Array:
         g = jax.grad(self.hnn.hamiltonian)(state)
-        d = jax.grad(self.rayleigh)(state)
-        return jnp.concatenate([g[2:], -g[:2] - d[2:] + force])
+        return jnp.concatenate([g[2:], -g[:2] - self.rayleigh_matrix(state[:2]) @ state[2:] + force])
 
 
 class LNN(AbstractVectorField):
-    """Euler–Lagrange accelerations of ``L = energy_scale · MLP(standardised q, q̇)``."""
+    """Euler–Lagrange accelerations of ``L = energy_scale · (½‖ξ_q̇‖² + MLP(ξ))``, ``ξ`` the
+    standardised ``(q, q̇)``."""
 
     mlp: eqx.nn.MLP
     norm: Standardiser
     energy_scale: float = eqx.field(static=True)
 
     def lagrangian(self, q: Array, qd: Array) -> Array:
-        return self.energy_scale * self.mlp(self.norm.state(jnp.concatenate([q, qd])))[0]
+        xi = self.norm.state(jnp.concatenate([q, qd]))
+        # a free particle plus the network: a skip connection that makes the q̇-Hessian of a fresh
+        # model well conditioned (a plain random MLP's is near-singular and indefinite); L stays a
+        # general function, and nothing limits the conditioning once training moves it
+        return self.energy_scale * (0.5 * jnp.sum(xi[2:] ** 2) + self.mlp(xi)[0])
+
+    def loss_terms(self, batch: dict[str, Array], scales: tuple[Array, Array]) -> dict[str, Array]:
+        """Derivative loss only (see the module doc)."""
+        terms = super().loss_terms(batch, scales)
+        return {"deriv": terms["deriv"]}
 
     def __call__(self, state: Array, t: Array, force: Array) -> Array:
         q, qd = state[:2], state[2:]
@@ -136,7 +154,8 @@ def build_baseline(kind: str, config: MLPConfig, stats: dict, key: Array) -> Abs
         hnn = HNN(mlp=_mlp(config, 4, 1, k1), norm=norm, energy_scale=stats["energy"])
         if kind == "hnn":
             return hnn
-        return DissipativeHNN(hnn=hnn, dissipation=_mlp(config, 4, 1, k2))
+        rate = float(np.mean(np.asarray(stats["deriv_std"][2:]) / np.asarray(stats["state_std"][2:])))
+        return DissipativeHNN(hnn=hnn, dissipation=_mlp(config, 2, 3, k2), rate_scale=rate)
     if kind == "lnn":
         return LNN(mlp=_mlp(config, 4, 1, k1), norm=norm, energy_scale=stats["energy"])
     raise ValueError(kind)

@@ -271,8 +271,23 @@ class Trainer:
                 return loss, {**terms, "loss": loss}
 
             grads, terms = eqx.filter_grad(total, has_aux=True)(model)
-            updates, opt_state = optimizer.update(grads, opt_state, eqx.filter(model, eqx.is_array))
-            return eqx.apply_updates(model, updates), opt_state, terms
+            updates, new_state = optimizer.update(grads, opt_state, eqx.filter(model, eqx.is_array))
+            # a non-finite loss or gradient (e.g. an LNN's singular Hessian) skips the step instead of
+            # destroying the weights; skipped steps are counted in the history
+            flat = jax.tree_util.tree_leaves(eqx.filter(grads, eqx.is_array))
+            finite = jnp.isfinite(terms["loss"]) & jnp.all(
+                jnp.asarray([jnp.all(jnp.isfinite(g)) for g in flat])
+            )
+            keep = lambda new, old: jnp.where(finite, new, old)  # noqa: E731
+            new_model = eqx.apply_updates(model, updates)
+            params = jax.tree_util.tree_map(
+                keep, eqx.filter(new_model, eqx.is_array), eqx.filter(model, eqx.is_array)
+            )
+            model = eqx.combine(params, model)
+            opt_state = jax.tree_util.tree_map(
+                lambda n, o: jnp.where(finite, n, o) if eqx.is_array(n) else n, new_state, opt_state
+            )
+            return model, opt_state, {**terms, "skipped": 1.0 - finite.astype(float)}
 
         return step
 
@@ -300,13 +315,16 @@ class Trainer:
         until = cfg.steps if until is None else min(until, cfg.steps)
         model, opt_state = state.model, state.opt_state
         last: dict[str, Array] = {}
+        skipped = jnp.zeros(())
         for i in range(state.step, until):
             model, opt_state, last = self._step_fn(model, opt_state, jnp.asarray(i))
+            skipped = skipped + last["skipped"]
             done = i + 1
             if done % cfg.val_every == 0 or done == cfg.steps:
                 val = self.validate(model)
                 val_total = val["total"]
-                record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items()}}
+                record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items() if k != "skipped"}}
+                record["skipped_steps"] = float(skipped)  # since this call started (non-finite loss)
                 record.update({f"val_{k}": v for k, v in val.items()})
                 record["lr"] = float(cfg.schedule()(i))
                 record["lambda_flow"] = float(cfg.flow_weight(jnp.asarray(i)))

@@ -1,0 +1,97 @@
+"""Every model on the same data, with the same optimiser budget, scored by the same evaluator.
+
+For ``solid_body_vortex`` (the paper's configuration) and ``steady_vortex`` (with actuation), trains
+FHNN, Neural ODE, HNN, LNN, DHN, dissipative HNN (Adam, ``--steps`` steps each, same batch size and
+schedule) and fits SINDy, then prints RMSE / ADE / FDE of positions at 1 s and 5 s (SPEC §5, and in
+the paper's averaging over t = 0, 1, …, H), with diverged rollouts counted and shown as diverged.
+The paper's own numbers (its data) at 5 s: HNN 1.77 m, LNN 5.85e10 m, DHN 1.02 m, FHNN 6.09e-4 m.
+
+    python benchmarks/baselines.py [--steps 3000] [--only solid|steady] [--models fhnn,node,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+import fhnn
+from fhnn.data.dataset import read_dataset, write_dataset
+from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.evaluation.evaluate import evaluate
+from fhnn.physics.scenarios import get_scenario
+from fhnn.training.run import MODELS, Run
+from fhnn.training.trainer import TrainConfig
+
+ORDER = ["fhnn", "node", "hnn", "lnn", "dhn", "dhnn", "sindy"]
+PAPER_5S = {"hnn": 1.77, "lnn": 5.85e10, "dhn": 1.02, "fhnn": 6.09e-4}
+
+
+def dataset(name: str, folder: Path):
+    path = folder / f"{name}.h5"
+    if not path.exists():
+        sc = get_scenario(name)
+        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc)), path)
+    return read_dataset(path), path
+
+
+def fmt(m: dict, key: str) -> str:
+    if m["diverged"] == m["n_traj"]:
+        return "diverged"
+    value = f"{m[key]:.2e}"
+    return value + (f" ({m['diverged']} div.)" if m["diverged"] else "")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--steps", type=int, default=3000)
+    p.add_argument("--only", choices=["solid", "steady"], default=None)
+    p.add_argument("--models", default=",".join(ORDER))
+    p.add_argument("--out", type=Path, default=Path("benchmarks/_baselines"))
+    args = p.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    models = [m for m in args.models.split(",") if m]
+    names = {
+        "solid": ["solid_body_vortex"],
+        "steady": ["steady_vortex"],
+        None: ["solid_body_vortex", "steady_vortex"],
+    }
+    report: dict = {}
+    print(f"fhnn {fhnn.__version__}: {args.steps} Adam steps per model (batch 256), SINDy fitted")
+    for name in names[args.only]:
+        ds, path = dataset(name, args.out)
+        report[name] = {}
+        for kind in models:
+            folder = args.out / f"{name}_{kind}"
+            config = MODELS[kind]()
+            run = Run.create(
+                folder, ds, str(path), kind, config, TrainConfig(steps=args.steps, val_every=500)
+            )
+            t0 = time.perf_counter()
+            run.train(ds)
+            secs = time.perf_counter() - t0
+            res = {}
+            for zero in (False, True):
+                out = evaluate(run.state.best_model, ds, [1, 5], include_zero=zero)["horizons"]
+                res["paper_avg" if zero else "spec"] = out
+            report[name][kind] = {"seconds": secs, **res}
+            print(f"  {name:18s} {kind:6s} trained in {secs:6.0f} s", flush=True)
+        print(f"\n{name}: position errors [m] (SPEC averaging over t = 1..H; diverged rollouts counted)")
+        heads = [f"{k} {h}s" for h in (1, 5) for k in ("RMSE", "ADE", "FDE")]
+        print(f"  {'model':6s} " + " ".join(f"{h:>18s}" for h in heads) + "  paper RMSE 5s")
+        for kind in models:
+            r = report[name][kind]["spec"]
+            cells = [fmt(r[h], k) for h in ("1", "5") for k in ("rmse_pos", "ade", "fde")]
+            paper = f"{PAPER_5S[kind]:.2e}" if kind in PAPER_5S else "-"
+            print(f"  {kind:6s} " + " ".join(f"{c:>18s}" for c in cells) + f"  {paper}")
+        fh = report[name].get("fhnn", {}).get("spec", {}).get("1", {}).get("rmse_pos", np.nan)
+        nd = report[name].get("node", {}).get("spec", {}).get("1", {}).get("rmse_pos", np.nan)
+        print(f"  Neural ODE / FHNN RMSE at 1 s: {nd / fh:.1f}x (paper: 42x)\n")
+    (args.out / "report.json").write_text(json.dumps(report, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()
