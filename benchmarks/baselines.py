@@ -17,25 +17,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _common import dataset
 
 import fhnn
-from fhnn.data.dataset import read_dataset, write_dataset
-from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.evaluation.evaluate import evaluate
-from fhnn.physics.scenarios import get_scenario
 from fhnn.training.run import MODELS, Run
 from fhnn.training.trainer import TrainConfig
 
 ORDER = ["fhnn", "node", "hnn", "lnn", "dhn", "dhnn", "sindy"]
 PAPER_5S = {"hnn": 1.77, "lnn": 5.85e10, "dhn": 1.02, "fhnn": 6.09e-4}
-
-
-def dataset(name: str, folder: Path):
-    path = folder / f"{name}.h5"
-    if not path.exists():
-        sc = get_scenario(name)
-        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc)), path)
-    return read_dataset(path), path
 
 
 def fmt(m: dict, key: str) -> str:

@@ -19,23 +19,14 @@ import json
 import time
 from pathlib import Path
 
+from _common import dataset
+
 import fhnn
-from fhnn.data.dataset import read_dataset, write_dataset
-from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.models.fhnn import FHNNConfig
-from fhnn.physics.scenarios import get_scenario
 from fhnn.training.run import Run
 from fhnn.training.trainer import TrainConfig
-
-
-def dataset(name: str, folder: Path):
-    path = folder / f"{name}.h5"
-    if not path.exists():
-        sc = get_scenario(name)
-        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc)), path)
-    return read_dataset(path), path
 
 
 def train(name: str, folder: Path, steps: int, options: dict):
