@@ -57,10 +57,12 @@ def main() -> None:
         for kind in models:
             folder = args.out / f"{name}_{kind}"
             config = MODELS[kind]()
-            run = Run.create(
-                folder, ds, str(path), kind, config, TrainConfig(steps=args.steps, val_every=500)
-            )
             t0 = time.perf_counter()
+            if (folder / "run.json").exists():  # resume (or reuse) an earlier run of this benchmark
+                run = Run.load(folder, expect_model=kind)
+            else:
+                train_config = TrainConfig(steps=args.steps, val_every=500)
+                run = Run.create(folder, ds, str(path), kind, config, train_config)
             run.train(ds)
             secs = time.perf_counter() - t0
             res = {}

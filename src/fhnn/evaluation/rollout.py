@@ -21,6 +21,9 @@ from fhnn.physics.integrators import adaptive_solve
 
 #: Default rollout tolerance; its real error is checked by a test against a 100× tighter solve.
 ROLLOUT_TOL = 1e-10
+#: Step budget per sample interval: a rollout needing more (a stiff, e.g. LNN, model) counts as a
+#: solver failure and is reported as diverged. Well-posed models take about one step per interval.
+STEPS_PER_SAMPLE = 20
 
 
 @dataclass(frozen=True)
@@ -34,11 +37,23 @@ class Rollout:
 
 @eqx.filter_jit
 def _rollout_batch(
-    model: AbstractVectorField, y0: jax.Array, act: jax.Array, ts: jax.Array, rtol: float, atol: float
+    model: AbstractVectorField,
+    y0: jax.Array,
+    act: jax.Array,
+    ts: jax.Array,
+    rtol: float,
+    atol: float,
+    max_steps: int,
 ) -> tuple[jax.Array, jax.Array]:
     def one(s0: jax.Array, a: jax.Array) -> tuple[jax.Array, jax.Array]:
         return adaptive_solve(
-            lambda s, t: model(s, t, actuation_force(a, t)), s0, ts, rtol=rtol, atol=atol, dense=False
+            lambda s, t: model(s, t, actuation_force(a, t)),
+            s0,
+            ts,
+            rtol=rtol,
+            atol=atol,
+            dense=False,
+            max_steps=max_steps,
         )
 
     return jax.vmap(one)(y0, act)
@@ -71,7 +86,10 @@ def rollout(
         return Rollout(t=np.asarray(t), states=np.asarray(states), ok=np.asarray(ok))
     t = split.t if until is None else split.t[: np.searchsorted(split.t, until - 1e-9) + 1]
     y0 = (split.states_clean if from_clean else split.states)[:, 0]
-    ys, ok = _rollout_batch(model, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol)
+    max_steps = STEPS_PER_SAMPLE * (t.size - 1) + 1000
+    ys, ok = _rollout_batch(
+        model, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol, max_steps
+    )
     ys = np.asarray(ys)
     ok = np.asarray(ok) & np.all(np.isfinite(ys), axis=(1, 2))
     return Rollout(t=np.asarray(t), states=ys, ok=ok)
