@@ -236,14 +236,12 @@ def evaluate(
 ) -> None:
     """Roll the best model out from each trajectory's first state and report errors at horizons."""
     from fhnn.evaluation.evaluate import evaluate as run_evaluation
-    from fhnn.training.run import Run
 
     try:
         hs = [float(h) for h in horizons.split(",") if h.strip()]
     except ValueError:
         raise ConfigError(f"--horizons expects numbers separated by commas, got {horizons!r}") from None
-    run = Run.load(run_dir)
-    dataset = read_dataset(data if data is not None else run.meta["data"])
+    run, dataset = _load_run(run_dir, data)
     result = run_evaluation(run.state.best_model, dataset, hs, split=split)
     if as_json:
         typer.echo(
@@ -273,12 +271,8 @@ def inspect(
     """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN."""
     from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
     from fhnn.experiments.figures import coefficient_figure, flow_figure
-    from fhnn.training.run import Run
 
-    run = Run.load(run_dir)
-    if run.kind != "fhnn":
-        raise ConfigError(f"inspect needs an fhnn run; a {run.kind!r} model has no flow or coefficients")
-    dataset = read_dataset(data if data is not None else run.meta["data"])
+    run, dataset = _load_run(run_dir, data, fhnn_only=True)
     model = run.state.best_model
     coef = coefficient_recovery(model.coefficients, dataset)
     flow = flow_recovery(model.flow, dataset)
@@ -310,6 +304,16 @@ def inspect(
         )
     stdout.print(f"flow: relative L2 error {flow['rel_l2']:.3%} over {flow['points']} grid points")
     stdout.print("figures: " + ", ".join(str(f) for f in figures))
+
+
+def _load_run(run_dir: Path, data: Path | None, *, fhnn_only: bool = False) -> tuple[Any, Any]:
+    """A trained run and the data set to score it on (default: the one it was trained on)."""
+    from fhnn.training.run import Run
+
+    run = Run.load(run_dir)
+    if fhnn_only and run.kind != "fhnn":
+        raise ConfigError(f"inspect needs an fhnn run; a {run.kind!r} model has no flow or coefficients")
+    return run, read_dataset(data if data is not None else run.meta["data"])
 
 
 def _fmt(x: float) -> str:

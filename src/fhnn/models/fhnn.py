@@ -30,7 +30,6 @@ hidden layer), ``relu`` (ReLU activations).
 
 from __future__ import annotations
 
-import math
 from typing import Literal
 
 import equinox as eqx
@@ -38,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
+from fhnn.config import Config, check_positive, frozen_config
 from fhnn.errors import ConfigError
 from fhnn.models.base import AbstractVectorField
 from fhnn.physics.body import AbstractCoefficients
@@ -95,7 +94,6 @@ class FHNNConfig(Config):
                     f"fhnn: init_coefficients {self.init_coefficients} must lie inside the range of the "
                     f"{self.cap_map} cap map ({lower:g}, {cap:g}) for each coefficient"
                 )
-        check_nonnegative(self, "width")
 
     @property
     def effective_depth(self) -> int:
@@ -281,7 +279,3 @@ def build_fhnn(
         fluid_inertia=fluid_inertia,
     )
     return FHNN(eom=eom)
-
-
-def fhnn_parameter_count(model: FHNN) -> int:
-    return int(sum(math.prod(x.shape) for x in jax.tree_util.tree_leaves(eqx.filter(model, eqx.is_array))))

@@ -88,8 +88,4 @@ def fit_sindy(config: SINDyConfig, train: Split) -> tuple[SINDyField, list[str]]
     return field, equations
 
 
-def sindy_parameter_count(field: SINDyField) -> int:
-    return int(np.count_nonzero(np.asarray(field.coefficients)))
-
-
 __all__ = ["SINDyConfig", "SINDyField", "empty_sindy", "fit_sindy", "library_powers"]

@@ -83,7 +83,6 @@ class TrainConfig(Config):
 
     def schedule(self) -> optax.Schedule:
         bounds = {int(b * self.steps): self.lr_decay for b in self.lr_boundaries}
-        # optax multiplies at each boundary; equal boundaries would collapse into one key
         return optax.piecewise_constant_schedule(self.lr, bounds)
 
     def flow_weight(self, step: Array) -> Array:
@@ -236,17 +235,27 @@ class Trainer:
             params, opt_state, value = step(params, opt_state)
             done = k + 1
             if done % every == 0 or done == cfg.lbfgs_steps:
-                model = eqx.combine(params, static)
-                val = self.validate(model)
                 record = {"step": cfg.steps + done, "train_loss": float(value), "phase": "lbfgs"}
-                record.update({f"val_{key}": v for key, v in val.items()})
-                state.history.append(record)
-                if val["total"] < state.best_val:
-                    state.best_val, state.best_model = val["total"], model
-                state.model, state.step = model, cfg.steps + done
-                if callback is not None:
-                    callback(state, record)
+                self._record(state, eqx.combine(params, static), record, callback)
         return state
+
+    def _record(
+        self,
+        state: TrainState,
+        model: AbstractVectorField,
+        record: dict[str, Any],
+        callback: Callable[[TrainState, dict[str, float]], None] | None,
+    ) -> None:
+        """Validate ``model``, log ``record`` with the validation terms, keep the best model,
+        advance ``state`` to ``record["step"]`` and call ``callback``."""
+        val = self.validate(model)
+        record.update({f"val_{k}": v for k, v in val.items()})
+        state.history.append(record)
+        if val["total"] < state.best_val:
+            state.best_val, state.best_model = val["total"], model
+        state.model, state.step = model, record["step"]
+        if callback is not None:
+            callback(state, record)
 
     @staticmethod
     def optimizer_for(config: TrainConfig) -> optax.GradientTransformation:
@@ -321,18 +330,11 @@ class Trainer:
             skipped = skipped + last["skipped"]
             done = i + 1
             if done % cfg.val_every == 0 or done == cfg.steps:
-                val = self.validate(model)
-                val_total = val["total"]
                 record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items() if k != "skipped"}}
                 record["skipped_steps"] = float(skipped)  # since this call started (non-finite loss)
-                record.update({f"val_{k}": v for k, v in val.items()})
                 record["lr"] = float(cfg.schedule()(i))
                 record["lambda_flow"] = float(cfg.flow_weight(jnp.asarray(i)))
-                state.history.append(record)
-                if val_total < state.best_val:
-                    state.best_val, state.best_model = val_total, model
-                state.model, state.opt_state, state.step = model, opt_state, done
-                if callback is not None:
-                    callback(state, record)
+                state.opt_state = opt_state
+                self._record(state, model, record, callback)
         state.model, state.opt_state, state.step = model, opt_state, max(state.step, until)
         return state
