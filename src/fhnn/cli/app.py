@@ -306,6 +306,87 @@ def inspect(
     stdout.print("figures: " + ", ".join(str(f) for f in figures))
 
 
+@app.command()
+def reproduce(
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output folder (created; resumed if it exists).")
+    ] = Path("reproduction"),
+    quick: Annotated[
+        bool,
+        typer.Option(
+            "--quick", help="Small data, few steps, one seed, one main scenario: the whole report in minutes."
+        ),
+    ] = False,
+    seeds: Annotated[int | None, typer.Option(help="Seeds per model [default: 3; --quick: 1].")] = None,
+    steps: Annotated[int | None, typer.Option(help="Adam steps per model [default: 3000].")] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Local worker processes [default: one per CPU core].")
+    ] = None,
+    ray: Annotated[
+        str | None,
+        typer.Option(
+            "--ray",
+            help="Run the jobs on a Ray cluster: its ADDRESS, 'auto' (the running cluster) or 'local' "
+            "(start one here). Needs pip install 'fhnn[ray]'.",
+        ),
+    ] = None,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set", help="Any reproduction setting NAME=VALUE, e.g. models=fhnn,node (repeatable)."
+        ),
+    ] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+) -> None:
+    """Regenerate the data, train every model/ablation/scenario/seed of the paper's tables, evaluate,
+    and write tables (Markdown, CSV, JSON), figures (PNG, SVG), report.md and index.html into OUT.
+    Finished jobs are kept: an interrupted run resumes, an unchanged one does nothing."""
+    import signal
+
+    from fhnn.experiments.grid import ReproduceConfig, build_grid
+    from fhnn.experiments.reproduce import check_output_folder
+    from fhnn.experiments.reproduce import reproduce as run_reproduction
+
+    options: dict[str, Any] = dict(parse_params(set_ or []))
+    if seeds is not None:
+        options["seeds"] = seeds
+    if steps is not None:
+        options["steps"] = steps
+    config = ReproduceConfig.quick(**options) if quick else ReproduceConfig.from_dict(options)
+    if workers is not None and workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    check_output_folder(out)
+    n_data, n_jobs = (len(x) for x in build_grid(config))
+    err.print(f"reproduce: {n_data} data sets, {n_jobs} training jobs ({config.seeds} seed(s)) -> {out}")
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops cleanly, like Ctrl-C
+    with Progress(
+        TextColumn("{task.fields[phase]:6s}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("{task.fields[last]}"),
+        console=err,
+        disable=quiet,
+    ) as bar:
+        task = bar.add_task("reproduce", total=1, phase="", last="")
+
+        def progress(phase: str, done: int, total: int, last: str) -> None:
+            bar.update(task, completed=done, total=total, phase=phase, last=last)
+
+        try:
+            summary = run_reproduction(config, out, workers=workers, ray_address=ray, progress=progress)
+        except KeyboardInterrupt:
+            bar.stop()
+            err.print("interrupted: finished jobs are kept; run the same command again to resume")
+            raise typer.Exit(130) from None
+    ran = (
+        f"{summary.data_run} of {summary.data_total} data sets and "
+        f"{summary.jobs_run} of {summary.jobs_total} training jobs run"
+    )
+    built = "report rebuilt" if summary.report_built else "nothing changed, report kept"
+    stdout.print(f"{ran}, {built} in {summary.seconds:.0f} s: {out / 'index.html'}")
+
+
 def _load_run(run_dir: Path, data: Path | None, *, fhnn_only: bool = False) -> tuple[Any, Any]:
     """A trained run and the data set to score it on (default: the one it was trained on)."""
     from fhnn.training.run import Run

@@ -1,8 +1,9 @@
 """High-accuracy rollouts of a model from each test trajectory's first state (SPEC §5).
 
 The model is integrated with adaptive Dopri8 whose steps land on every sample time (no
-interpolation error), with each trajectory's own ``F_ext(t)``. Divergence — a non-finite state or a
-solver failure — is reported per trajectory, never dropped silently.
+interpolation error), with each trajectory's own ``F_ext(t)``. Divergence — a non-finite state, a
+state beyond ``BLOW_UP`` times the initial scale, or a solver failure — is reported per trajectory,
+never dropped silently.
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ from fhnn.physics.integrators import adaptive_solve
 
 #: Default rollout tolerance; its real error is checked by a test against a 100× tighter solve.
 ROLLOUT_TOL = 1e-10
+#: A rollout whose state exceeds this multiple of the largest initial-state component (at least
+#: 1) has blown up; it stops there and is reported as diverged.
+BLOW_UP = 1e3
 #: Step budget per sample interval: a rollout needing more (a stiff, e.g. LNN, model) counts as a
 #: solver failure and is reported as diverged. Well-posed models take about one step per interval.
 STEPS_PER_SAMPLE = 20
@@ -44,6 +48,7 @@ def _rollout_batch(
     rtol: float,
     atol: float,
     max_steps: int,
+    bound: jax.Array,
 ) -> tuple[jax.Array, jax.Array]:
     def one(s0: jax.Array, a: jax.Array) -> tuple[jax.Array, jax.Array]:
         return adaptive_solve(
@@ -54,6 +59,7 @@ def _rollout_batch(
             atol=atol,
             dense=False,
             max_steps=max_steps,
+            bound=bound,
         )
 
     return jax.vmap(one)(y0, act)
@@ -87,8 +93,9 @@ def rollout(
     t = split.t if until is None else split.t[: np.searchsorted(split.t, until - 1e-9) + 1]
     y0 = (split.states_clean if from_clean else split.states)[:, 0]
     max_steps = STEPS_PER_SAMPLE * (t.size - 1) + 1000
+    bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(y0)))))
     ys, ok = _rollout_batch(
-        model, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol, max_steps
+        model, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol, max_steps, bound
     )
     ys = np.asarray(ys)
     ok = np.asarray(ok) & np.all(np.isfinite(ys), axis=(1, 2))

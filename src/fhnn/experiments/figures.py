@@ -97,3 +97,112 @@ def coefficient_figure(
         ax.set_title(f"{name} [{UNITS[name]}]")
     axes[0].legend(fontsize=8)
     return _save(fig, path, formats)
+
+
+def rollout_figure(
+    t: np.ndarray,
+    truth: np.ndarray,
+    predictions: dict[str, np.ndarray],
+    path: Path,
+    *,
+    title: str = "",
+    formats: tuple[str, ...] = ("png", "svg"),
+) -> list[Path]:
+    """Paths ``(x, y)`` of up to four test trajectories: truth (black) and every model's rollout.
+
+    Args:
+        t: sample times [s], shape ``(T,)``.
+        truth: clean true states, shape ``(K, T, 4)``.
+        predictions: model name → predicted states ``(K, T, 4)`` (non-finite where diverged).
+    """
+    k = min(4, truth.shape[0])
+    fig, axes = plt.subplots(1, k, figsize=(4.2 * k, 4.2), squeeze=False)
+    for i, ax in enumerate(axes[0]):
+        ax.plot(truth[i, :, 0], truth[i, :, 1], "k-", lw=2.2, label="truth")
+        ax.plot(truth[i, 0, 0], truth[i, 0, 1], "ko")
+        x, y = truth[i, :, 0], truth[i, :, 1]
+        pad = 0.3 * max(np.ptp(x), np.ptp(y), 0.1)
+        for name, pred in predictions.items():
+            ax.plot(pred[i, :, 0], pred[i, :, 1], lw=1.1, label=name)
+        ax.set_xlim(x.min() - pad, x.max() + pad)
+        ax.set_ylim(y.min() - pad, y.max() + pad)
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"test trajectory {i}, 0–{t[-1]:g} s")
+    axes[0, 0].legend(fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path, formats)
+
+
+def horizon_figure(
+    horizons: list[float],
+    curves: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]],
+    path: Path,
+    *,
+    title: str = "",
+    formats: tuple[str, ...] = ("png", "svg"),
+) -> list[Path]:
+    """Errors against horizon: RMSE, ADE, FDE (log scale) and within-ε, mean ± std over seeds.
+
+    Args:
+        horizons: horizons [s].
+        curves: model → metric (``rmse_pos``, ``ade``, ``fde``, ``within_eps``) → (mean, std),
+            arrays over ``horizons`` (NaN where every rollout diverged).
+    """
+    panels = (
+        ("rmse_pos", "RMSE(pos) [m]"),
+        ("ade", "ADE [m]"),
+        ("fde", "FDE [m]"),
+        ("within_eps", "within 1 cm"),
+    )
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    h = np.asarray(horizons, dtype=float)
+    for ax, (metric, label) in zip(axes, panels, strict=True):
+        for name, metrics in curves.items():
+            mean, std = metrics[metric]
+            line = ax.plot(h, mean, "o-", ms=3, label=name)[0]
+            ax.fill_between(h, mean - std, mean + std, color=line.get_color(), alpha=0.15, lw=0)
+        ax.set_xscale("log")
+        if metric != "within_eps":
+            ax.set_yscale("log")
+        else:
+            ax.set_ylim(-0.05, 1.05)
+        ax.set_xlabel("horizon [s]")
+        ax.set_title(label)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path, formats)
+
+
+def ablation_figure(
+    names: list[str],
+    mean: np.ndarray,
+    std: np.ndarray,
+    paper: list[float | None],
+    path: Path,
+    *,
+    title: str = "",
+    formats: tuple[str, ...] = ("png", "svg"),
+) -> list[Path]:
+    """RMSE(pos) at 5 s per FHNN variant as bars (log scale, ± std), the paper's as markers."""
+    fig, ax = plt.subplots(figsize=(1.3 * len(names) + 2, 4.2))
+    x = np.arange(len(names))
+    shown = np.where(np.isfinite(mean), mean, np.nan)
+    ax.bar(x, shown, yerr=np.where(np.isfinite(std), std, 0), capsize=3, color="tab:blue", label="ours")
+    px = [i for i, p in enumerate(paper) if p is not None]
+    ax.plot(px, [paper[i] for i in px], "r_", ms=22, mew=2.5, label="paper (its data)")
+    for i in np.flatnonzero(~np.isfinite(mean)):
+        ax.annotate(
+            "diverged", (i, 1), xycoords=("data", "axes fraction"), ha="center", va="top", color="red"
+        )
+    ax.set_yscale("log")
+    ax.set_xticks(x, names, rotation=20)
+    ax.set_ylabel("RMSE(pos) at 5 s [m]")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    return _save(fig, path, formats)

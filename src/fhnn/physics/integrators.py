@@ -55,6 +55,7 @@ def adaptive_solve(
     atol: float = 1e-12,
     max_steps: int = 200_000,
     dense: bool = True,
+    bound: float | None = None,
 ) -> tuple[Array, Array]:
     """Integrate from ``(s0, ts[0])`` with adaptive Dopri8, returning the state at every ``ts``.
 
@@ -66,6 +67,8 @@ def adaptive_solve(
         max_steps: step budget; running out counts as a failure.
         dense: interpolate outputs between steps (fast) rather than stepping onto every output
             time (most accurate).
+        bound: stop, as a failure, once any component of the state exceeds this magnitude (a
+            blowing-up model then fails fast instead of spending the step budget).
 
     Returns:
         ``(states, ok)``: states of shape ``(T, D)`` and a scalar bool that is true when the solver
@@ -86,6 +89,7 @@ def adaptive_solve(
         stepsize_controller=controller,
         max_steps=max_steps,
         throw=False,
+        event=None if bound is None else diffrax.Event(lambda t, y, args, **kw: jnp.max(jnp.abs(y)) > bound),
     )
     ys = sol.ys
     ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))

@@ -1,0 +1,289 @@
+"""The reproduction's report: tables, figures, ``report.md`` and a self-contained ``index.html``.
+
+Layout of the output folder (beside ``data/`` and ``jobs/``, which the grid fills)::
+
+    tables/T1.md … T6.md, T1.csv … , T1.json …, tables.md, tables.csv, tables.json
+    figures/flow_<data>.{png,svg}              learned vs true flow (FHNN, first seed)
+    figures/rollouts_<data>.{png,svg}          four test rollouts under every model (first seed)
+    figures/errors_vs_horizon_<data>.{png,svg} RMSE, ADE, FDE (log scale), within-ε vs horizon
+    figures/ablations_<data>.{png,svg}         RMSE(pos) at 5 s per FHNN variant
+    report.md, index.html                      everything above, with configuration and timings
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import platform
+import warnings
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fhnn import __version__
+from fhnn.data.dataset import read_dataset
+from fhnn.experiments import figures
+from fhnn.experiments.grid import ABLATIONS, HORIZONS, ModelJob, ReproduceConfig
+from fhnn.experiments.paper import paper_value
+from fhnn.experiments.tables import (
+    MODEL_NAMES,
+    Cell,
+    build_tables,
+    layout,
+    to_csv,
+    to_json,
+    to_markdown,
+)
+from fhnn.training.run import Run
+
+PACKAGES = ("jax", "jaxlib", "equinox", "diffrax", "optax", "numpy", "scipy", "h5py", "pysindy", "matplotlib")
+
+
+def package_versions() -> dict[str, str]:
+    out = {"python": platform.python_version(), "fhnn": __version__}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def _write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def write_tables(cells: list[Cell], folder: Path, seeds: int) -> list[Path]:
+    """Every table as Markdown, CSV and JSON, one file per table and one with all of them."""
+    folder.mkdir(exist_ok=True)
+    written = []
+    for key in [*dict.fromkeys(c.table for c in cells), "tables"]:
+        sub = cells if key == "tables" else [c for c in cells if c.table == key]
+        for ext, text in (("md", to_markdown(sub, seeds)), ("csv", to_csv(sub)), ("json", to_json(sub))):
+            path = folder / f"{key}.{ext}"
+            _write(path, text)
+            written.append(path)
+    return written
+
+
+def _first_seed(jobs: list[ModelJob], data: str, variant: str) -> ModelJob | None:
+    found = [j for j in jobs if j.data.label == data and j.variant == variant]
+    return min(found, key=lambda j: j.seed) if found else None
+
+
+def make_figures(
+    out: Path, jobs: list[ModelJob], results: dict[str, dict], config: ReproduceConfig
+) -> list[Path]:
+    """The figures of SPEC §6 for each main scenario (PNG and SVG)."""
+    folder = out / "figures"
+    folder.mkdir(exist_ok=True)
+    written: list[Path] = []
+    main = [
+        j.data for j in jobs if j.data.scenario in config.main_scenarios and j.data.label == j.data.scenario
+    ]
+    for d in dict.fromkeys(main):
+        dataset = read_dataset(out / "data" / d.filename)
+        variants = list(dict.fromkeys(j.variant for j in jobs if j.data.id == d.id))
+        models = [v for v in variants if v not in ABLATIONS]
+        fhnn_job = _first_seed(jobs, d.label, "fhnn")
+        if fhnn_job is not None:
+            run = Run.load(out / "jobs" / fhnn_job.id / "run", expect_model="fhnn")
+            truth = dataset.equations()
+            written += figures.flow_figure(
+                run.state.best_model.flow,
+                truth.flow,
+                dataset,
+                folder / f"flow_{d.label}",
+                formats=("png", "svg"),
+            )
+        predictions, t = {}, None
+        for v in models:
+            job = _first_seed(jobs, d.label, v)
+            with np.load(out / "jobs" / job.id / "rollouts.npz") as npz:
+                t, predictions[MODEL_NAMES.get(v, v)] = npz["t"], npz["pred"]
+        if t is not None:
+            k = next(iter(predictions.values())).shape[0]
+            truth_states = dataset.test.states_clean[:k, : t.size]
+            written += figures.rollout_figure(
+                t,
+                truth_states,
+                predictions,
+                folder / f"rollouts_{d.label}",
+                title=f"{d.label}: test rollouts",
+            )
+        curves = {}
+        for v in models:
+            rs = [results[j.id] for j in jobs if j.data.id == d.id and j.variant == v]
+            curves[MODEL_NAMES.get(v, v)] = {
+                m: _mean_std([[r["spec_metrics"][str(h)][m] for h in HORIZONS] for r in rs])
+                for m in ("rmse_pos", "ade", "fde", "within_eps")
+            }
+        written += figures.horizon_figure(
+            list(HORIZONS),
+            curves,
+            folder / f"errors_vs_horizon_{d.label}",
+            title=f"{d.label}: error vs horizon",
+        )
+        ablation_variants = [v for v in ("fhnn", *ABLATIONS) if v in variants]
+        if len(ablation_variants) > 1:
+            stats = [
+                _mean_std(
+                    [
+                        [results[j.id]["spec_metrics"]["5"]["rmse_pos"]]
+                        for j in jobs
+                        if j.data.id == d.id and j.variant == v
+                    ]
+                )
+                for v in ablation_variants
+            ]
+            written += figures.ablation_figure(
+                [MODEL_NAMES[v] for v in ablation_variants],
+                np.array([s[0][0] for s in stats]),
+                np.array([s[1][0] for s in stats]),
+                [paper_value("T5", v, 5, "rmse_pos") for v in ablation_variants],
+                folder / f"ablations_{d.label}",
+                title=f"{d.label}: ablations",
+            )
+    return written
+
+
+def _mean_std(rows: list[list[float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and std over seeds (rows) per column, ignoring non-finite entries."""
+    a = np.asarray(rows, dtype=float)
+    a = np.where(np.isfinite(a), a, np.nan)
+    with warnings.catch_warnings():  # an all-NaN column (every seed diverged) stays NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(a, axis=0), np.nan_to_num(np.nanstd(a, axis=0))
+
+
+def _timings(jobs: list[ModelJob], results: dict[str, dict]) -> dict[str, Any]:
+    per_model: dict[str, list[float]] = {}
+    for j in jobs:
+        r = results[j.id]
+        per_model.setdefault(j.variant, []).append(r["train_seconds"] + r["eval_seconds"])
+    return {
+        "jobs": len(jobs),
+        "job_seconds_total": float(sum(sum(v) for v in per_model.values())),
+        "mean_job_seconds": {k: float(np.mean(v)) for k, v in per_model.items()},
+    }
+
+
+def build_report(
+    out: Path,
+    config: ReproduceConfig,
+    jobs: list[ModelJob],
+    results: dict[str, dict],
+    *,
+    wall_seconds: float,
+) -> Path:
+    """Tables, figures, ``report.md`` and ``index.html`` in ``out``; returns the HTML's path."""
+    cells = build_tables(jobs, results, config.main_scenarios, config.scenario_table)
+    write_tables(cells, out / "tables", config.seeds)
+    figure_paths = make_figures(out, jobs, results, config)
+    timings = {**_timings(jobs, results), "wall_seconds_this_run": wall_seconds}
+    versions = package_versions()
+    _write(out / "timings.json", json.dumps(timings, indent=1))
+    pngs = [p for p in figure_paths if p.suffix == ".png"]
+    _write(out / "report.md", _markdown(cells, config, versions, timings, pngs, out))
+    _write(out / "index.html", _html(cells, config, versions, timings, pngs))
+    return out / "index.html"
+
+
+def _intro(config: ReproduceConfig, timings: dict[str, Any]) -> str:
+    return (
+        f"fhnn {__version__}: the paper's tables (SPEC §6) on our data sets, "
+        f"{config.seeds} seed(s) per model, "
+        f"{config.steps} Adam steps per gradient-trained model"
+        + (f" + {config.lbfgs_steps} L-BFGS (FHNN)" if config.lbfgs_steps else "")
+        + f". {timings['jobs']} training jobs, {timings['job_seconds_total'] / 60:.1f} CPU-minutes of jobs; "
+        f"this invocation took {timings['wall_seconds_this_run'] / 60:.1f} min (cached jobs are not re-run)."
+    )
+
+
+def _markdown(
+    cells: list[Cell],
+    config: ReproduceConfig,
+    versions: dict[str, str],
+    timings: dict[str, Any],
+    pngs: list[Path],
+    out: Path,
+) -> str:
+    lines = ["# fhnn reproduction report", "", _intro(config, timings), "", "## Tables", ""]
+    lines.append(to_markdown(cells, config.seeds))
+    lines += ["## Figures", ""]
+    lines += [f"![{p.stem}]({p.relative_to(out).as_posix()})" for p in pngs]
+    lines += ["", "## Configuration", "", "```json", json.dumps(config.to_dict(), indent=1), "```", ""]
+    lines += ["## Versions", ""] + [f"- {k}: {v}" for k, v in versions.items()]
+    lines += ["", "## Mean time per job [s] (train + evaluate)", ""]
+    lines += [f"- {MODEL_NAMES.get(k, k)}: {v:.1f}" for k, v in timings["mean_job_seconds"].items()]
+    return "\n".join(lines) + "\n"
+
+
+_CSS = """
+body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1400px;padding:0 1em;color:#222}
+table{border-collapse:collapse;margin:0.5em 0 1.5em;font-size:13px}
+th,td{border:1px solid #ccc;padding:3px 7px;text-align:right}
+th{background:#f0f0f0} td:first-child{text-align:left}
+figure{margin:1em 0} img{max-width:100%;border:1px solid #eee}
+pre{background:#f7f7f7;padding:0.6em;overflow-x:auto}
+"""
+
+# Sets data-images-loaded / data-images-total on <body> once the page has loaded, so that a
+# headless browser can check that every embedded figure decoded.
+_CHECK = """
+window.addEventListener('load', function () {
+  var imgs = Array.prototype.slice.call(document.images);
+  var ok = imgs.filter(function (i) { return i.complete && i.naturalWidth > 0; }).length;
+  document.body.setAttribute('data-images-total', String(imgs.length));
+  document.body.setAttribute('data-images-loaded', String(ok));
+});
+"""
+
+
+def _html(
+    cells: list[Cell],
+    config: ReproduceConfig,
+    versions: dict[str, str],
+    timings: dict[str, Any],
+    pngs: list[Path],
+) -> str:
+    e = html.escape
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        "<title>fhnn reproduction report</title>",
+        f"<style>{_CSS}</style><script>{_CHECK}</script></head><body>",
+        "<h1>fhnn reproduction report</h1>",
+        f"<p>{e(_intro(config, timings))}</p>",
+        "<p>Each cell: mean ± sample std over seeds (SPEC §5 averaging over t = 1..H); "
+        "'ours, t=0..H' averages the paper's way; 'paper' is the paper's number on its own data; "
+        "'(k/n div.)': k of n rollouts diverged and are left out of the averages.</p>",
+        "<h2>Tables</h2>",
+    ]
+    for _, title, header, rows in layout(cells):
+        parts.append(
+            f"<h3>{e(title)}</h3><table><tr>" + "".join(f"<th>{e(h)}</th>" for h in header) + "</tr>"
+        )
+        parts += ["<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in rows]
+        parts.append("</table>")
+    parts.append("<h2>Figures</h2>")
+    for p in pngs:
+        data = base64.b64encode(p.read_bytes()).decode()
+        parts.append(
+            f"<figure><img alt='{e(p.stem)}' src='data:image/png;base64,{data}'>"
+            f"<figcaption>{e(p.stem)} (SVG: figures/{e(p.stem)}.svg)</figcaption></figure>"
+        )
+    parts.append("<h2>Configuration</h2><pre>" + e(json.dumps(config.to_dict(), indent=1)) + "</pre>")
+    parts.append("<h2>Versions</h2><table>")
+    parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in versions.items()]
+    parts.append("</table><h2>Mean time per job (train + evaluate)</h2><table>")
+    parts += [
+        f"<tr><td>{e(MODEL_NAMES.get(k, k))}</td><td>{v:.1f} s</td></tr>"
+        for k, v in timings["mean_job_seconds"].items()
+    ]
+    parts.append("</table></body></html>")
+    return "\n".join(parts)

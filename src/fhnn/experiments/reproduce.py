@@ -1,0 +1,171 @@
+"""``fhnn reproduce``: simulate, train, evaluate and report the whole grid (SPEC §6).
+
+Three phases, each skipping what is already done:
+
+1. data jobs → ``OUT/data/<label>-<hash>.h5``;
+2. model jobs → ``OUT/jobs/<label>-<hash>/`` (``result.json``, ``rollouts.npz``, ``run/``), written
+   into a temporary folder and renamed, so a folder exists only when its job finished; a data
+   set's model jobs are queued as soon as that data set exists, so phases 1 and 2 overlap;
+3. the report (tables, figures, ``report.md``, ``index.html``), rebuilt only when the set of
+   results or the configuration changed (``OUT/report.stamp``).
+
+An interrupted run therefore resumes where it stopped, and a second run with nothing changed
+does nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from fhnn import __version__
+from fhnn.errors import ConfigError
+from fhnn.experiments.executors import Task, default_workers, run_local, run_ray
+from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
+from fhnn.experiments.report import build_report
+
+FORMAT = "fhnn-reproduction"
+#: ``progress(phase, done, total, last)``: phase "jobs" (data sets and training jobs still to do)
+#: or "report"; ``last`` the label of the job that just finished (at the start: how many are cached).
+ProgressFn = Callable[[str, int, int, str], None]
+
+
+@dataclass(frozen=True)
+class Summary:
+    """What a call of :func:`reproduce` did."""
+
+    out: Path
+    data_total: int
+    data_run: int
+    jobs_total: int
+    jobs_run: int
+    report_built: bool
+    seconds: float
+
+
+def check_output_folder(out: Path) -> None:
+    """``out`` may be new, empty, or a reproduction folder; anything else is refused."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"output '{out}' exists and is not a folder")
+    if not out.parent.is_dir():
+        raise ConfigError(f"output folder '{out.parent}' does not exist")
+    if out.is_dir() and any(out.iterdir()) and not (out / "reproduce.json").is_file():
+        raise ConfigError(f"output folder '{out}' is not empty and holds no reproduction (no reproduce.json)")
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def _store_job(folder: Path, files: dict[str, bytes]) -> None:
+    tmp = folder.with_name(f".{folder.name}.tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    for rel, data in files.items():
+        target = tmp / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(data)
+    shutil.rmtree(folder, ignore_errors=True)
+    os.replace(tmp, folder)
+
+
+def reproduce(
+    config: ReproduceConfig,
+    out: Path,
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    progress: ProgressFn | None = None,
+) -> Summary:
+    """Run every job the report needs that is not yet done, then build the report."""
+    started = time.perf_counter()
+    out = Path(out)
+    check_output_folder(out)
+    workers = default_workers() if workers is None else workers
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    datasets, jobs = build_grid(config)
+    for sub in ("data", "jobs", "cache"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    _write_atomic(
+        out / "reproduce.json",
+        json.dumps({"format": FORMAT, "version": __version__, "config": config.to_dict()}, indent=1).encode(),
+    )
+    cache_dir = str((out / "cache" / "jax").resolve())
+    report = progress or (lambda *a: None)
+
+    def run(tasks: list[Task], on_done: Callable[[Task, object], None]) -> None:
+        if ray_address:
+            run_ray(tasks, on_done, address=ray_address, cache_dir=cache_dir)
+        else:
+            run_local(tasks, on_done, workers=workers, cache_dir=cache_dir)
+
+    # 1–2. data sets, and the training jobs of each as soon as its data set exists
+    by_id: dict[str, DataJob] = {d.id: d for d in datasets}
+    jobs_by_id: dict[str, ModelJob] = {j.id: j for j in jobs}
+    todo = [d for d in datasets if not (out / "data" / d.filename).is_file()]
+    todo_jobs = [j for j in jobs if not (out / "jobs" / j.id / "result.json").is_file()]
+    total = len(todo) + len(todo_jobs)
+    done = 0
+    report("jobs", done, total, f"{len(datasets) - len(todo) + len(jobs) - len(todo_jobs)} cached")
+    data_bytes: dict[str, bytes] = {}
+
+    def model_tasks(d: DataJob) -> list[Task]:
+        waiting = [j for j in todo_jobs if j.data.id == d.id]
+        if waiting and d.id not in data_bytes:
+            data_bytes[d.id] = (out / "data" / d.filename).read_bytes()
+        return [Task(j.id, "model", (j.spec, data_bytes[d.id], d.filename)) for j in waiting]
+
+    def on_done(task: Task, output: object) -> list[Task]:
+        nonlocal done
+        done += 1
+        if task.function == "data":
+            assert isinstance(output, bytes)
+            _write_atomic(out / "data" / by_id[task.name].filename, output)
+            report("jobs", done, total, by_id[task.name].label)
+            return model_tasks(by_id[task.name])
+        assert isinstance(output, dict)
+        _store_job(out / "jobs" / task.name, output)
+        report("jobs", done, total, jobs_by_id[task.name].label)
+        return []
+
+    first = [Task(d.id, "data", (d.spec,)) for d in todo]
+    for d in datasets:
+        if d not in todo:
+            first += model_tasks(d)
+    run(first, on_done)
+
+    # 3. the report, unless nothing changed since it was last built
+    stamp = hashlib.sha256(
+        json.dumps([__version__, config.to_dict(), sorted(jobs_by_id)], sort_keys=True).encode()
+    ).hexdigest()
+    stamp_path = out / "report.stamp"
+    fresh = (
+        not todo_jobs
+        and not todo
+        and stamp_path.is_file()
+        and stamp_path.read_text() == stamp
+        and (out / "index.html").is_file()
+    )
+    if not fresh:
+        report("report", 0, 1, "")
+        results = {j.id: json.loads((out / "jobs" / j.id / "result.json").read_text()) for j in jobs}
+        build_report(out, config, jobs, results, wall_seconds=time.perf_counter() - started)
+        _write_atomic(stamp_path, stamp.encode())
+        report("report", 1, 1, "index.html")
+    return Summary(
+        out=out,
+        data_total=len(datasets),
+        data_run=len(todo),
+        jobs_total=len(jobs),
+        jobs_run=len(todo_jobs),
+        report_built=not fresh,
+        seconds=time.perf_counter() - started,
+    )
