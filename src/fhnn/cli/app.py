@@ -318,7 +318,7 @@ def reproduce(
         ),
     ] = False,
     seeds: Annotated[int | None, typer.Option(help="Seeds per model [default: 3; --quick: 1].")] = None,
-    steps: Annotated[int | None, typer.Option(help="Adam steps per model [default: 3000].")] = None,
+    steps: Annotated[int | None, typer.Option(help="Adam steps per model [default: 1500].")] = None,
     workers: Annotated[
         int | None, typer.Option(help="Local worker processes [default: one per CPU core].")
     ] = None,

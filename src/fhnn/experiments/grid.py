@@ -63,7 +63,7 @@ class ReproduceConfig(Config):
     config_name = "reproduce"
 
     seeds: int = 3
-    steps: int = 3000
+    steps: int = 1500
     lbfgs_steps: int = 0
     batch_size: int = 256
     val_every: int = 500

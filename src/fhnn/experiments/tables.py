@@ -88,7 +88,7 @@ class Cell:
         """``mean ± std`` (3 significant digits), "diverged", and the divergence count."""
         mean, std = (self.mean_paper_avg, self.std_paper_avg) if paper_avg else (self.mean, self.std)
         if not math.isfinite(mean):
-            return "diverged" if self.diverged else "n/a"
+            return f"diverged ({self.diverged}/{self.rollouts})" if self.diverged else "n/a"
         pct = self.metric in RECOVERY_METRICS or self.metric in ("outside_training", "within_eps")
         fmt = (lambda v: f"{100 * v:.3g} %") if pct else (lambda v: f"{v:.2e}")
         out = fmt(mean) + (f" ± {fmt(std)}" if self.seeds > 1 else "")

@@ -1,0 +1,316 @@
+"""`fhnn reproduce`: the job grid, caching, tables, the report, Ray, interruption and resumption."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fhnn.errors import ConfigError, FhnnError
+from fhnn.experiments.executors import Task, run_local
+from fhnn.experiments.grid import HORIZONS, ReproduceConfig, build_grid
+from fhnn.experiments.reproduce import check_output_folder, reproduce
+from fhnn.experiments.tables import build_tables, layout, to_csv, to_json
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# --- the grid --------------------------------------------------------------------------------
+
+
+def test_default_grid_covers_every_table_without_repeats() -> None:
+    config = ReproduceConfig()
+    datasets, jobs = build_grid(config)
+    labels = [j.label for j in jobs]
+    assert len(labels) == len(set(labels))
+    # 2 main scenarios × (7 models + 5 ablations) + 4 other T4 scenarios + steady without actuation
+    assert len(jobs) == config.seeds * (2 * 12 + 4 + 1)
+    assert sorted(d.label for d in datasets) == sorted(
+        [
+            "solid_body_vortex",
+            "steady_vortex",
+            "time_varying_vortex",
+            "noisy_flow",
+            "obstacle",
+            "wave",
+            "steady_vortex_noact",
+        ]
+    )
+    assert {j.seed for j in jobs} == {0, 1, 2}
+
+
+def test_job_ids_change_with_what_determines_the_result_only() -> None:
+    _, a = build_grid(ReproduceConfig(seeds=1))
+    _, b = build_grid(ReproduceConfig(seeds=1))
+    _, c = build_grid(ReproduceConfig(seeds=1, steps=1501))
+    _, d = build_grid(ReproduceConfig(seeds=2, models=("fhnn",)))
+    assert [j.id for j in a] == [j.id for j in b]
+    assert not {j.id for j in a} & {j.id for j in c}
+    # a seed-0 FHNN job is the same job whatever else the grid holds
+    assert {j.id for j in d if j.seed == 0 and j.variant == "fhnn"} <= {j.id for j in a}
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"models": ("fhnn", "gpt")}, "unknown name 'gpt' in models"),
+        ({"ablations": ("no_flow", "no_flow")}, "lists a name twice"),
+        ({"main_scenarios": ("vortex",)}, "unknown name 'vortex' in main_scenarios"),
+        ({"test_duration": 60.0}, "test_duration must cover the longest horizon"),
+        ({"seeds": 0}, "seeds"),
+        ({"n_traj": 2}, "n_traj must be >= 3"),
+        ({"dt": -0.1}, "dt must be > 0"),
+        ({"sedes": 2}, "did you mean 'seeds'"),
+    ],
+)
+def test_bad_reproduce_configuration_is_refused(changes: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        ReproduceConfig.from_dict(changes)
+
+
+def test_output_folder_that_holds_something_else_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="not empty and holds no reproduction"):
+        check_output_folder(tmp_path)
+    with pytest.raises(ConfigError, match="does not exist"):
+        check_output_folder(tmp_path / "missing" / "out")
+    check_output_folder(tmp_path / "new")  # a new folder is fine
+
+
+# --- tables from hand-made results ---------------------------------------------------------------
+
+
+def _result(value: float, diverged: int = 0, n: int = 4, recovery: float | None = None) -> dict:
+    def metrics(v: float) -> dict:
+        return {
+            str(h): {
+                "rmse_pos": v * h,
+                "rmse_vel": v,
+                "ade": v,
+                "fde": v,
+                "within_eps": 0.5,
+                "outside_training": 0.25,
+                "diverged": diverged,
+                "n_traj": n,
+            }
+            for h in HORIZONS
+        }
+
+    out = {"spec_metrics": metrics(value), "paper_metrics": metrics(value / 2)}
+    if recovery is not None:
+        out["recovery"] = {
+            "coefficients": {k: {"max_rel": recovery} for k in ("m_ax", "m_ay", "c_q", "c_l")},
+            "flow": {"rel_l2": recovery / 10},
+        }
+    return out
+
+
+def test_cells_are_mean_and_sample_std_over_seeds_with_the_paper_beside() -> None:
+    config = ReproduceConfig(
+        seeds=2,
+        models=("fhnn", "lnn"),
+        ablations=(),
+        main_scenarios=("solid_body_vortex",),
+        scenario_table=(),
+    )
+    _, jobs = build_grid(config.replace(identifiability=False))
+    results = {}
+    for j in jobs:
+        if j.model == "fhnn":
+            results[j.id] = _result(1e-3 if j.seed == 0 else 3e-3, recovery=0.02 * (j.seed + 1))
+        else:  # the LNN: seed 0 diverged everywhere, seed 1 in one of four rollouts
+            results[j.id] = _result(math.nan, diverged=4) if j.seed == 0 else _result(0.5, diverged=1)
+    cells = build_tables(jobs, results, ("solid_body_vortex",), ())
+    cell = next(c for c in cells if (c.table, c.model, c.horizon, c.metric) == ("T2", "fhnn", 5, "rmse_pos"))
+    assert cell.mean == pytest.approx(1e-2)  # (5e-3 + 15e-3) / 2
+    assert cell.std == pytest.approx(np.std([5e-3, 15e-3], ddof=1))
+    assert cell.mean_paper_avg == pytest.approx(5e-3)
+    assert cell.paper == 6.09e-4
+    assert cell.text() == "1.00e-02 ± 7.07e-03"
+    lnn = next(c for c in cells if (c.table, c.model, c.horizon, c.metric) == ("T2", "lnn", 5, "rmse_pos"))
+    assert lnn.mean == pytest.approx(2.5) and lnn.diverged == 5 and lnn.rollouts == 8
+    assert lnn.text().endswith("(5/8 div.)")
+    assert lnn.paper == 5.85e10
+    t6 = next(c for c in cells if (c.table, c.metric) == ("T6", "m_ax"))
+    assert t6.mean == pytest.approx(0.03) and t6.text().startswith("3 % ±")
+    # T1 compares FHNN with the Neural ODE only: no Neural ODE ran, so only FHNN rows
+    assert {c.model for c in cells if c.table == "T1"} == {"fhnn"}
+    rows = json.loads(to_json(cells))
+    assert len(rows) == len(cells) and all(r["mean"] is None or math.isfinite(r["mean"]) for r in rows)
+    assert to_csv(cells).count("\n") == len(cells) + 1
+    for _, _, header, table_rows in layout(cells):
+        assert all(len(r) == len(header) for r in table_rows)
+
+
+def test_a_cell_whose_every_rollout_diverged_reads_diverged() -> None:
+    config = ReproduceConfig(
+        seeds=1,
+        models=("lnn",),
+        ablations=(),
+        main_scenarios=("solid_body_vortex",),
+        scenario_table=(),
+        identifiability=False,
+    )
+    _, jobs = build_grid(config)
+    cells = build_tables(jobs, {jobs[0].id: _result(math.nan, diverged=4)}, ("solid_body_vortex",), ())
+    assert {c.text() for c in cells if c.metric == "rmse_pos"} == {"diverged (4/4)"}
+
+
+# --- executors ---------------------------------------------------------------------------------
+
+
+def test_a_failing_job_is_reported_by_name_after_the_others_finish(tmp_path: Path) -> None:
+    done = []
+    bad = Task("bad-job", "data", ({"scenario": "steady_vortex", "settings": {"n_traj": 1}},))
+    good = Task(
+        "good-job",
+        "data",
+        ({"scenario": "steady_vortex", "settings": {"n_traj": 3, "duration": 0.2, "test_duration": 0.2}},),
+    )
+    with pytest.raises(FhnnError, match=r"1 job\(s\) failed \(bad-job: ConfigError: .*n_traj"):
+        run_local([bad, good], lambda t, out: done.append(t.name), workers=1)
+    assert done == ["good-job"]
+
+
+# --- end to end --------------------------------------------------------------------------------
+
+TWO_JOBS = {
+    "seeds": 1,
+    "steps": 30,
+    "val_every": 30,
+    "n_traj": 6,
+    "duration": 1.0,
+    "dt": 0.1,
+    "models": ("fhnn", "node"),
+    "ablations": (),
+    "main_scenarios": ("steady_vortex",),
+    "scenario_table": (),
+    "identifiability": False,
+}
+
+
+def _metrics(out: Path) -> dict[str, dict]:
+    return {
+        p.parent.name: json.loads(p.read_text())["spec_metrics"]
+        for p in sorted((out / "jobs").glob("*/result.json"))
+    }
+
+
+@pytest.mark.filterwarnings("ignore:os.fork")
+def test_ray_cluster_gives_the_numbers_of_the_local_executor(tmp_path: Path) -> None:
+    ray = pytest.importorskip("ray")
+    config = ReproduceConfig.from_dict(TWO_JOBS)
+    local = reproduce(config, tmp_path / "local", workers=2)
+    assert local.jobs_run == 2
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        remote = reproduce(config, tmp_path / "ray", ray_address="auto")
+    finally:
+        ray.shutdown()
+    assert remote.jobs_run == 2
+    a, b = _metrics(tmp_path / "local"), _metrics(tmp_path / "ray")
+    assert list(a) == list(b) and len(a) == 2
+    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)  # bit-identical
+
+
+def _fhnn(*args: str) -> list[str]:
+    return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
+
+
+def _render(html: Path, tmp: Path) -> str:
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.fail("headless Chromium is needed (Debian package 'chromium'; .ci/run installs it)")
+    cmd = [
+        chromium,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp / 'chromium-profile'}",
+        "--virtual-time-budget=10000",
+        "--dump-dom",
+        html.as_uri(),
+    ]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True).stdout
+
+
+def test_quick_reproduction_interrupted_resumed_and_rendered(tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    # 1. start, and interrupt (SIGINT, as Ctrl-C) once a few training jobs have finished
+    proc = subprocess.Popen(
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q"), env=env, stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.monotonic() + 400
+    while time.monotonic() < deadline and len(list((out / "jobs").glob("*/result.json"))) < 3:
+        assert proc.poll() is None, proc.stderr.read()
+        time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "interrupted: finished jobs are kept" in stderr
+    finished = {p.parent.name: p.stat().st_mtime_ns for p in (out / "jobs").glob("*/result.json")}
+    n_jobs = len(build_grid(ReproduceConfig.quick())[1])
+    assert 3 <= len(finished) < n_jobs
+    assert not (out / "index.html").exists()
+    # 2. resume: only the unfinished jobs run
+    run = subprocess.run(
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q"), env=env, capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    assert f"{n_jobs - len(finished)} of {n_jobs} training jobs run" in run.stdout
+    for name, mtime in finished.items():
+        assert (out / "jobs" / name / "result.json").stat().st_mtime_ns == mtime
+    # 3. nothing changed: nothing runs, the report is kept
+    again = subprocess.run(
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q"), env=env, capture_output=True, text=True
+    )
+    assert again.returncode == 0, again.stderr
+    assert "0 of 6 data sets and 0 of" in again.stdout and "nothing changed, report kept" in again.stdout
+
+    # every table in three formats, the paper column present, numbers finite or marked diverged
+    for key in ("T1", "T2", "T3", "T4", "T5", "T6"):
+        rows = json.loads((out / "tables" / f"{key}.json").read_text())
+        assert rows, key
+        for r in rows:
+            assert "paper" in r
+            assert (r["mean"] is not None and math.isfinite(r["mean"])) or r["diverged"] > 0, r
+        md = (out / "tables" / f"{key}.md").read_text()
+        assert "paper" in md or key == "T6"
+        assert (
+            (out / "tables" / f"{key}.csv").read_text().startswith("table,data,model,horizon,metric,mean,std")
+        )
+    t1 = json.loads((out / "tables" / "T1.json").read_text())
+    assert any(r["paper"] == 1.07e-4 for r in t1)  # the paper's FHNN RMSE at 1 s beside ours
+    t4 = {r["data"] for r in json.loads((out / "tables" / "T4.json").read_text())}
+    assert t4 == {"steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "wave"}
+    for stem in ("flow", "rollouts", "errors_vs_horizon", "ablations"):
+        for ext in ("png", "svg"):
+            path = out / "figures" / f"{stem}_solid_body_vortex.{ext}"
+            assert path.stat().st_size > 5000, path
+    assert (out / "figures" / "flow_solid_body_vortex.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    report = (out / "report.md").read_text()
+    assert "### T1" in report and "### T6" in report and "![rollouts_solid_body_vortex]" in report
+    # the HTML is self-contained and every image decodes in headless Chromium
+    html = (out / "index.html").read_text()
+    assert "src='figures/" not in html and html.count("data:image/png;base64,") == 4
+    dom = _render(out / "index.html", tmp_path)
+    total = re.search(r'data-images-total="(\d+)"', dom)
+    loaded = re.search(r'data-images-loaded="(\d+)"', dom)
+    assert total and loaded, dom[:500]
+    assert int(total.group(1)) == 4 and int(loaded.group(1)) == 4
+    assert "T1: FHNN vs Neural ODE" in dom
