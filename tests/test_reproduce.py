@@ -86,6 +86,43 @@ def test_output_folder_that_holds_something_else_is_refused(tmp_path: Path) -> N
     check_output_folder(tmp_path / "new")  # a new folder is fine
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--set", "models=gpt"], "error: reproduce: unknown name 'gpt' in models"),
+        (["--seeds", "0"], "error: reproduce: seeds must be > 0, got 0"),
+        (["--workers", "0"], "error: --workers must be >= 1, got 0"),
+        (["--set", "seeds"], "error: --param expects NAME=VALUE"),
+        (["--set", "test_duration=30"], "error: reproduce: test_duration must cover the longest horizon"),
+    ],
+)
+def test_reproduce_cli_bad_input_is_one_line_exit_2_and_writes_nothing(
+    args: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from fhnn.cli.app import main
+
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as info:
+        main(["reproduce", "-o", str(out), "-q", *args])
+    err = capsys.readouterr().err
+    assert info.value.code == 2
+    assert err.startswith(message) and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_reproduce_cli_refuses_a_folder_holding_other_things(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from fhnn.cli.app import main
+
+    (tmp_path / "thesis.tex").write_text("keep me")
+    with pytest.raises(SystemExit) as info:
+        main(["reproduce", "--quick", "-o", str(tmp_path), "-q"])
+    assert info.value.code == 2
+    assert "holds no reproduction" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["thesis.tex"]
+
+
 # --- tables from hand-made results ---------------------------------------------------------------
 
 

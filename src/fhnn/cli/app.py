@@ -162,7 +162,9 @@ def train(
     set_: Annotated[
         list[str] | None,
         typer.Option(
-            "--set", help="Model or training option NAME=VALUE, e.g. width=32, lr=1e-3 (repeatable)."
+            "--set",
+            metavar="NAME=VALUE",
+            help="Model or training option NAME=VALUE, e.g. width=32, lr=1e-3 (repeatable).",
         ),
     ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
@@ -333,7 +335,9 @@ def reproduce(
     set_: Annotated[
         list[str] | None,
         typer.Option(
-            "--set", help="Any reproduction setting NAME=VALUE, e.g. models=fhnn,node (repeatable)."
+            "--set",
+            metavar="NAME=VALUE",
+            help="Any reproduction setting NAME=VALUE, e.g. models=fhnn,node (repeatable).",
         ),
     ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
