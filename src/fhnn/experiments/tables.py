@@ -90,8 +90,12 @@ class Cell:
         if not math.isfinite(mean):
             return f"diverged ({self.diverged}/{self.rollouts})" if self.diverged else "n/a"
         pct = self.metric in RECOVERY_METRICS or self.metric in ("outside_training", "within_eps")
-        fmt = (lambda v: f"{100 * v:.3g} %") if pct else (lambda v: f"{v:.2e}")
-        out = fmt(mean) + (f" ± {fmt(std)}" if self.seeds > 1 else "")
+        if pct:  # percentages; a spread below 0.001 percentage points is rounding noise
+            out = f"{100 * mean:.3g} %" + (f" ± {100 * std:.2g} %" if self.seeds > 1 else "")
+            if self.seeds > 1 and 100 * std < 1e-3:
+                out = f"{100 * mean:.3g} % ± 0 %"
+        else:
+            out = f"{mean:.2e}" + (f" ± {std:.2e}" if self.seeds > 1 else "")
         if self.diverged:
             out += f" ({self.diverged}/{self.rollouts} div.)"
         return out
