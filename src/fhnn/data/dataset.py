@@ -194,6 +194,16 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
+def write_atomic(path: str | os.PathLike[str], data: str | bytes) -> Path:
+    """Write ``data`` (text as UTF-8) to ``path`` through :func:`atomic_output`; returns the path."""
+    with atomic_output(path) as tmp:
+        if isinstance(data, str):
+            tmp.write_text(data, encoding="utf-8")
+        else:
+            tmp.write_bytes(data)
+    return Path(path)
+
+
 def write_dataset(dataset: Dataset, path: str | os.PathLike[str]) -> Path:
     """Write ``dataset`` to ``path`` (HDF5) atomically; returns the path."""
     with atomic_output(path) as tmp:

@@ -51,8 +51,6 @@ def run_data_job(spec: dict[str, Any]) -> bytes:
 def run_model_job(spec: dict[str, Any], data: bytes, data_name: str) -> dict[str, bytes]:
     """Train and evaluate the model of a model job's ``spec`` on the data set ``data`` (HDF5
     bytes, stored by the driver as ``data/<data_name>``); returns the job's files."""
-    from fhnn.experiments.grid import HORIZONS  # the horizons are part of the job's identity
-
     kind, ablation = spec["model"], spec["ablation"]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -66,7 +64,7 @@ def run_model_job(spec: dict[str, Any], data: bytes, data_name: str) -> dict[str
         train_seconds = time.perf_counter() - t0
         model = run.state.best_model
         t0 = time.perf_counter()
-        ev = evaluate(model, dataset, list(HORIZONS), both_averagings=True, keep_rollout=True)
+        ev = evaluate(model, dataset, spec["horizons"], both_averagings=True, keep_rollout=True)
         eval_seconds = time.perf_counter() - t0
         result: dict[str, Any] = {
             "spec": spec,

@@ -16,7 +16,6 @@ import base64
 import html
 import json
 import platform
-import warnings
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -24,15 +23,16 @@ from typing import Any
 import numpy as np
 
 from fhnn import __version__
-from fhnn.data.dataset import read_dataset
+from fhnn.data.dataset import read_dataset, write_atomic
 from fhnn.experiments import figures
 from fhnn.experiments.grid import ABLATIONS, HORIZONS, ModelJob, ReproduceConfig
-from fhnn.experiments.paper import paper_value
 from fhnn.experiments.tables import (
     MODEL_NAMES,
     Cell,
     build_tables,
+    cell_note,
     layout,
+    seed_stats,
     to_csv,
     to_json,
     to_markdown,
@@ -52,12 +52,6 @@ def package_versions() -> dict[str, str]:
     return out
 
 
-def _write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-
-
 def write_tables(cells: list[Cell], folder: Path, seeds: int) -> list[Path]:
     """Every table as Markdown, CSV and JSON, one file per table and one with all of them."""
     folder.mkdir(exist_ok=True)
@@ -66,7 +60,7 @@ def write_tables(cells: list[Cell], folder: Path, seeds: int) -> list[Path]:
         sub = cells if key == "tables" else [c for c in cells if c.table == key]
         for ext, text in (("md", to_markdown(sub, seeds)), ("csv", to_csv(sub)), ("json", to_json(sub))):
             path = folder / f"{key}.{ext}"
-            _write(path, text)
+            write_atomic(path, text)
             written.append(path)
     return written
 
@@ -77,9 +71,10 @@ def _first_seed(jobs: list[ModelJob], data: str, variant: str) -> ModelJob | Non
 
 
 def make_figures(
-    out: Path, jobs: list[ModelJob], results: dict[str, dict], config: ReproduceConfig
+    out: Path, jobs: list[ModelJob], results: dict[str, dict], cells: list[Cell], config: ReproduceConfig
 ) -> list[Path]:
-    """The figures of SPEC §6 for each main scenario (PNG and SVG)."""
+    """The figures of SPEC §6 for each main scenario (PNG and SVG); the ablation bars are the T5
+    cells, the error curves use the tables' statistics (mean, sample std over seeds)."""
     folder = out / "figures"
     folder.mkdir(exist_ok=True)
     written: list[Path] = []
@@ -120,8 +115,7 @@ def make_figures(
         for v in models:
             rs = [results[j.id] for j in jobs if j.data.id == d.id and j.variant == v]
             curves[MODEL_NAMES.get(v, v)] = {
-                m: _mean_std([[r["spec_metrics"][str(h)][m] for h in HORIZONS] for r in rs])
-                for m in ("rmse_pos", "ade", "fde", "within_eps")
+                m: _curve(rs, m) for m in ("rmse_pos", "ade", "fde", "within_eps")
             }
         written += figures.horizon_figure(
             list(HORIZONS),
@@ -129,36 +123,23 @@ def make_figures(
             folder / f"errors_vs_horizon_{d.label}",
             title=f"{d.label}: error vs horizon",
         )
-        ablation_variants = [v for v in ("fhnn", *ABLATIONS) if v in variants]
-        if len(ablation_variants) > 1:
-            stats = [
-                _mean_std(
-                    [
-                        [results[j.id]["spec_metrics"]["5"]["rmse_pos"]]
-                        for j in jobs
-                        if j.data.id == d.id and j.variant == v
-                    ]
-                )
-                for v in ablation_variants
-            ]
+        bars = [c for c in cells if c.table == "T5" and c.data == d.label and c.metric == "rmse_pos"]
+        if len(bars) > 1:
             written += figures.ablation_figure(
-                [MODEL_NAMES[v] for v in ablation_variants],
-                np.array([s[0][0] for s in stats]),
-                np.array([s[1][0] for s in stats]),
-                [paper_value("T5", v, 5, "rmse_pos") for v in ablation_variants],
+                [MODEL_NAMES[c.model] for c in bars],
+                np.array([c.mean for c in bars]),
+                np.array([c.std for c in bars]),
+                [c.paper for c in bars],
                 folder / f"ablations_{d.label}",
                 title=f"{d.label}: ablations",
             )
     return written
 
 
-def _mean_std(rows: list[list[float]]) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and std over seeds (rows) per column, ignoring non-finite entries."""
-    a = np.asarray(rows, dtype=float)
-    a = np.where(np.isfinite(a), a, np.nan)
-    with warnings.catch_warnings():  # an all-NaN column (every seed diverged) stays NaN
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return np.nanmean(a, axis=0), np.nan_to_num(np.nanstd(a, axis=0))
+def _curve(results: list[dict], metric: str) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and sample std over seeds of ``metric`` at every horizon of :data:`HORIZONS`."""
+    stats = np.array([seed_stats([r["spec_metrics"][str(h)][metric] for r in results]) for h in HORIZONS])
+    return stats[:, 0], stats[:, 1]
 
 
 def _timings(jobs: list[ModelJob], results: dict[str, dict]) -> dict[str, Any]:
@@ -184,13 +165,13 @@ def build_report(
     """Tables, figures, ``report.md`` and ``index.html`` in ``out``; returns the HTML's path."""
     cells = build_tables(jobs, results, config.main_scenarios, config.scenario_table)
     write_tables(cells, out / "tables", config.seeds)
-    figure_paths = make_figures(out, jobs, results, config)
+    figure_paths = make_figures(out, jobs, results, cells, config)
     timings = {**_timings(jobs, results), "wall_seconds_this_run": wall_seconds}
     versions = package_versions()
-    _write(out / "timings.json", json.dumps(timings, indent=1))
+    write_atomic(out / "timings.json", json.dumps(timings, indent=1))
     pngs = [p for p in figure_paths if p.suffix == ".png"]
-    _write(out / "report.md", _markdown(cells, config, versions, timings, pngs, out))
-    _write(out / "index.html", _html(cells, config, versions, timings, pngs))
+    write_atomic(out / "report.md", _markdown(cells, config, versions, timings, pngs, out))
+    write_atomic(out / "index.html", _html(cells, config, versions, timings, pngs))
     return out / "index.html"
 
 
@@ -259,9 +240,7 @@ def _html(
         f"<style>{_CSS}</style><script>{_CHECK}</script></head><body>",
         "<h1>fhnn reproduction report</h1>",
         f"<p>{e(_intro(config, timings))}</p>",
-        "<p>Each cell: mean ± sample std over seeds (SPEC §5 averaging over t = 1..H); "
-        "'ours, t=0..H' averages the paper's way; 'paper' is the paper's number on its own data; "
-        "'(k/n div.)': k of n rollouts diverged and are left out of the averages.</p>",
+        f"<p>{e(cell_note(config.seeds))}</p>",
         "<h2>Tables</h2>",
     ]
     for _, title, header, rows in layout(cells):

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fhnn import __version__
+from fhnn.data.dataset import write_atomic
 from fhnn.errors import ConfigError
 from fhnn.experiments.executors import Task, default_workers, run_local, run_ray
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
@@ -59,12 +60,6 @@ def check_output_folder(out: Path) -> None:
         raise ConfigError(f"output folder '{out}' is not empty and holds no reproduction (no reproduce.json)")
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
-
-
 def _store_job(folder: Path, files: dict[str, bytes]) -> None:
     tmp = folder.with_name(f".{folder.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
@@ -94,7 +89,7 @@ def reproduce(
     datasets, jobs = build_grid(config)
     for sub in ("data", "jobs", "cache"):
         (out / sub).mkdir(parents=True, exist_ok=True)
-    _write_atomic(
+    write_atomic(
         out / "reproduce.json",
         json.dumps({"format": FORMAT, "version": __version__, "config": config.to_dict()}, indent=1).encode(),
     )
@@ -128,7 +123,7 @@ def reproduce(
         done += 1
         if task.function == "data":
             assert isinstance(output, bytes)
-            _write_atomic(out / "data" / by_id[task.name].filename, output)
+            write_atomic(out / "data" / by_id[task.name].filename, output)
             report("jobs", done, total, by_id[task.name].label)
             return model_tasks(by_id[task.name])
         assert isinstance(output, dict)
@@ -158,7 +153,7 @@ def reproduce(
         report("report", 0, 1, "")
         results = {j.id: json.loads((out / "jobs" / j.id / "result.json").read_text()) for j in jobs}
         build_report(out, config, jobs, results, wall_seconds=time.perf_counter() - started)
-        _write_atomic(stamp_path, stamp.encode())
+        write_atomic(stamp_path, stamp.encode())
         report("report", 1, 1, "index.html")
     return Summary(
         out=out,

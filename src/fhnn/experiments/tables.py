@@ -101,7 +101,8 @@ class Cell:
         return out
 
 
-def _stats(values: list[float]) -> tuple[float, float]:
+def seed_stats(values: list[float]) -> tuple[float, float]:
+    """Mean and sample std (0 for one value) of the finite ``values``; NaN, NaN if none is finite."""
     finite = [v for v in values if v is not None and math.isfinite(v)]
     if not finite:
         return math.nan, math.nan
@@ -111,13 +112,13 @@ def _stats(values: list[float]) -> tuple[float, float]:
 def _cell(table: str, data: str, model: str, horizon: int | None, metric: str, results: list[dict]) -> Cell:
     if horizon is None:  # recovery
         values = [_recovery_value(r, metric) for r in results]
-        mean, std = _stats(values)
+        mean, std = seed_stats(values)
         return Cell(table, data, model, None, metric, mean, std, len(results), 0, 0, math.nan, math.nan, None)
     h = str(horizon)
     spec = [r["spec_metrics"][h] for r in results]
     paper = [r["paper_metrics"][h] for r in results]
-    mean, std = _stats([m[metric] for m in spec])
-    mean_p, std_p = _stats([m[metric] for m in paper])
+    mean, std = seed_stats([m[metric] for m in spec])
+    mean_p, std_p = seed_stats([m[metric] for m in paper])
     if metric == "outside_training":
         mean_p, std_p = math.nan, math.nan
     return Cell(
@@ -260,9 +261,13 @@ def to_markdown(cells: list[Cell], seeds: int) -> str:
         parts.append("|" + "|".join([" --- "] + [" ---: "] * (len(header) - 1)) + "|")
         parts.extend("| " + " | ".join(r) + " |" for r in rows)
         parts.append("")
-    note = (
+    return cell_note(seeds) + "\n\n" + "\n".join(parts)
+
+
+def cell_note(seeds: int) -> str:
+    """What a table cell holds, for the reader of a report."""
+    return (
         f"Each cell: mean ± sample std over {seeds} seed(s) (SPEC §5 averaging, checkpoints t = 1..H); "
         "'ours, t=0..H' averages the paper's way; 'paper' is the paper's number on its own data. "
-        "'(k/n div.)': k of n rollouts diverged and are left out of the averages.\n"
+        "'(k/n div.)': k of n rollouts diverged and are left out of the averages."
     )
-    return note + "\n" + "\n".join(parts)

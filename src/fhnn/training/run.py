@@ -28,7 +28,7 @@ import numpy as np
 
 from fhnn import __version__
 from fhnn.config import Config
-from fhnn.data.dataset import Dataset
+from fhnn.data.dataset import Dataset, atomic_output, write_atomic
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.models.base import AbstractVectorField
 from fhnn.models.baselines import MLPConfig, build_baseline
@@ -212,13 +212,11 @@ class Run:
             "history": self.state.history,
             **self.meta,
         }
-        _atomic(self.folder / "model.eqx", lambda p: eqx.tree_serialise_leaves(p, self.state.model))
-        _atomic(self.folder / "best.eqx", lambda p: eqx.tree_serialise_leaves(p, self.state.best_model))
+        _save_leaves(self.folder / "model.eqx", self.state.model)
+        _save_leaves(self.folder / "best.eqx", self.state.best_model)
         if not polished:
-            _atomic(
-                self.folder / "opt_state.eqx", lambda p: eqx.tree_serialise_leaves(p, self.state.opt_state)
-            )
-        _atomic(self.folder / "run.json", lambda p: Path(p).write_text(json.dumps(info, indent=1)))
+            _save_leaves(self.folder / "opt_state.eqx", self.state.opt_state)
+        write_atomic(self.folder / "run.json", json.dumps(info, indent=1))
 
     @classmethod
     def load(cls, folder: str | os.PathLike[str], *, expect_model: str | None = None) -> Run:
@@ -262,10 +260,6 @@ class Run:
         return run
 
 
-def _atomic(path: Path, write: Callable[[str], Any]) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        write(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+def _save_leaves(path: Path, tree: Any) -> None:
+    with atomic_output(path) as tmp:
+        eqx.tree_serialise_leaves(tmp, tree)
