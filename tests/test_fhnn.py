@@ -120,7 +120,8 @@ def test_short_training_lowers_validation_error(data, tmp_path):
 
 
 def test_checkpoint_round_trip_and_exact_resume(data, tmp_path):
-    cfg, tc = FHNNConfig(width=16), TrainConfig(steps=40, val_every=10, batch_size=32)
+    cfg = FHNNConfig(width=16)
+    tc = TrainConfig(steps=40, val_every=10, batch_size=32, warmup_steps=4, lbfgs_pairs=200)
     straight = Run.create(tmp_path / "a", data, "mem", "fhnn", cfg, tc)
     straight.train(data)
     stopped = Run.create(tmp_path / "b", data, "mem", "fhnn", cfg, tc)
@@ -245,3 +246,51 @@ def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
     assert code == 2 and "horizon 99 s exceeds" in out.err
     code, out = run(["train", str(path), "-o", str(tmp_path / "r2"), "--ablation", "nope"])
     assert code == 2 and out.err.startswith("error: fhnn.ablation must be one of")
+
+
+def test_warmup_fits_the_linear_flow_first_so_rotation_extrapolates(tmp_path):
+    """On solid-body rotation the quasi-Newton warm-up (linear flow + coefficient net, stream MLP
+    frozen at zero) recovers Ω, and the learned flow is then right far outside the data."""
+    from fhnn.physics.flows import SolidBodyRotation
+
+    ds = small_dataset("solid_body_vortex", n_traj=8, duration=2.0)
+    config = TrainConfig(steps=0, warmup_steps=60, lbfgs_pairs=1500, val_every=20)
+    run = Run.create(tmp_path / "r", ds, "mem", "fhnn", FHNNConfig(width=16), config)
+    initial = run.skeleton()
+    state = run.train(ds, save=False)
+    model = state.best_model
+    assert [r["iteration"] for r in state.history if r["phase"] == "warmup"] == [12, 24, 36, 48, 60]
+    assert len(state.history) == 5 and state.step == 0
+    # the stream MLP did not move during the warm-up; the linear flow and coefficients did
+    leaves = jax.tree_util.tree_leaves
+    for a, b in zip(leaves(initial.flow.mlp), leaves(model.flow.mlp), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert not np.array_equal(np.asarray(initial.flow.quadratic), np.asarray(model.flow.quadratic))
+    truth = SolidBodyRotation(omega=0.2)
+    for xy in ([1.0, -0.5], [20.0, 5.0], [-3.0, -25.0]):  # r ≤ 3.5 m in the data
+        got = np.asarray(model.flow.velocity(jnp.asarray(xy), 0.0))
+        want = np.asarray(truth.velocity(jnp.asarray(xy), 0.0))
+        assert np.linalg.norm(got - want) < 1e-3 * np.linalg.norm(want), (xy, got, want)
+
+
+def test_coefficients_held_outside_the_training_radii():
+    ds = small_dataset("solid_body_vortex")
+    args = build_arguments(ds)
+    lo, hi = args["r_range"]
+    radius = np.hypot(ds.train.states[..., 0], ds.train.states[..., 1])
+    assert (lo, hi) == (radius.min(), radius.max())
+    held = build_model("fhnn", FHNNConfig(width=8), args, seed=0).coefficients
+    free = build_model("fhnn", FHNNConfig(width=8, r_extrapolation="net"), args, seed=0).coefficients
+    at = lambda c, r: np.asarray(c(jnp.asarray(r), jnp.asarray(0.3)))  # noqa: E731
+    np.testing.assert_array_equal(at(held, 5 * hi), at(held, hi))
+    np.testing.assert_array_equal(at(held, 0.0), at(held, lo))
+    np.testing.assert_array_equal(at(held, 0.5 * (lo + hi)), at(free, 0.5 * (lo + hi)))
+    assert not np.allclose(at(free, 5 * hi), at(free, hi))
+
+
+def test_training_phase_settings_are_checked():
+    with pytest.raises(ConfigError, match="warmup_steps"):
+        TrainConfig(warmup_steps=-1)
+    with pytest.raises(ConfigError, match="lbfgs_memory"):
+        TrainConfig(lbfgs_memory=0)
+    assert TrainConfig(steps=0).steps == 0

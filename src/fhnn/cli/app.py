@@ -211,7 +211,7 @@ def train(
             terms = " ".join(
                 f"{k[6:]} {v:.2e}" for k, v in record.items() if k.startswith("train_") and k != "train_loss"
             )
-            phase = "L-BFGS " if record.get("phase") == "lbfgs" else ""
+            phase = {"lbfgs": "L-BFGS ", "warmup": "warm-up "}.get(record.get("phase", ""), "")
             terms = terms or f"loss {record['train_loss']:.2e}"
             losses = f"{phase}{terms} | val {record['val_total']:.2e}"
             bar.update(task, completed=state.step, losses=losses)

@@ -8,6 +8,7 @@ a time ``t`` [s] and the known external force ``(2,)`` [N], and returns ``ṡ`` 
 from __future__ import annotations
 
 import abc
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -53,6 +54,12 @@ class AbstractVectorField(eqx.Module):
         }
         terms.update(self.regularization(batch["s"][:, 0], batch["t"][:, 0]))
         return terms
+
+    def warmup_filter(self) -> Any:
+        """Which parameters train during the trainer's warm-up phase: a pytree of bools shaped like
+        the model (``True``: trains from the first step), or ``None`` (default): every parameter
+        trains from the start and there is no warm-up."""
+        return None
 
     @property
     def window(self) -> int:

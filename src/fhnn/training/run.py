@@ -68,6 +68,7 @@ def build_arguments(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
         }
     body = dataset.body()
     pos = train.states[..., :2]
+    radius = np.hypot(pos[..., 0], pos[..., 1])
     return {
         "mass": body.mass,
         "rho": body.rho,
@@ -78,6 +79,7 @@ def build_arguments(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
         "length_scale": float(np.sqrt(np.mean(np.sum(pos**2, axis=-1)))),
         "speed_scale": float(np.sqrt(np.mean(train.states[..., 2:] ** 2))),
         "time_scale": float(train.t[-1]),
+        "r_range": [float(radius.min()), float(radius.max())],
     }
 
 
@@ -161,6 +163,10 @@ class Run:
             return self._fit_sindy(trainer, dataset, save)
         if self.state is None:
             self.state = trainer.init(self.skeleton())
+        if self.state.step == 0 and not any(r.get("phase") == "warmup" for r in self.state.history):
+            self.state = trainer.warmup(self.state, callback=callback)
+            if save and self.state.history:
+                self.save()
 
         def on_validation(state: TrainState, record: dict[str, float]) -> None:
             if save:
