@@ -255,19 +255,18 @@ class Trainer:
     ) -> TrainState:
         """``iterations`` full-batch quasi-Newton steps on the parameters of ``start`` selected by
         ``mask`` (None: all), on a seeded subset of the training pairs; validates and records five
-        times (``phase`` "warmup": at step 0, ``state.model`` ends at the last iterate; "lbfgs": at
-        steps after Adam's, the best model kept as in Adam)."""
+        times, the last at the last iterate, which ``state.model`` then holds (``phase`` "warmup":
+        records at step 0; "lbfgs": at the steps after Adam's)."""
         cfg = self.config
         n = min(cfg.lbfgs_pairs, len(self.train_pairs))
         idx = np.sort(np.random.default_rng(cfg.seed + 2).choice(len(self.train_pairs), n, replace=False))
         batch = {**self.train_pairs.subset(idx).as_jax(), "key": jax.random.PRNGKey(cfg.seed + 4)}
         params, static = eqx.partition(start, eqx.is_array)
-        params, frozen = eqx.partition(params, mask) if mask is not None else (params, None)
+        params, frozen = eqx.partition(params, True if mask is None else mask)
         scales = self.scales
 
         def objective(p: Any, fixed: Any, data: dict[str, Array]) -> Array:
-            model = eqx.combine(p, fixed, static) if fixed is not None else eqx.combine(p, static)
-            return data_loss(loss_terms(model, data, scales), cfg)
+            return data_loss(loss_terms(eqx.combine(p, fixed, static), data, scales), cfg)
 
         opt = optax.lbfgs(memory_size=cfg.lbfgs_memory)
 
@@ -282,17 +281,13 @@ class Trainer:
 
         opt_state = opt.init(params)
         every = max(1, min(cfg.val_every, iterations // 5 or 1))
-        offset = 0 if phase == "warmup" else cfg.steps
-        combine = lambda p: eqx.combine(p, frozen, static) if frozen is not None else eqx.combine(p, static)  # noqa: E731
         for k in range(iterations):
             params, opt_state, value = step(params, opt_state, frozen, batch)
             done = k + 1
             if done % every == 0 or done == iterations:
-                record = {"step": offset + (0 if phase == "warmup" else done), "train_loss": float(value)}
+                record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
                 record.update({"phase": phase, "iteration": done})
-                self._record(state, combine(params), record, callback)
-        if phase == "warmup":
-            state.model = combine(params)
+                self._record(state, eqx.combine(params, frozen, static), record, callback)
         return state
 
     def _record(
