@@ -1,5 +1,7 @@
 """FHNN model, training, checkpoints, rollout and metrics."""
 
+import itertools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -200,6 +202,43 @@ def test_recovery_of_the_truth_is_exact(data):
     assert coef["_coverage"]["sigma_max"] > coef["_coverage"]["sigma_min"] > 0
     flow = flow_recovery(truth.flow, data)
     assert flow["rel_l2"] == 0.0 and flow["points"] > 100
+    bands = coef["_by_sigma"]
+    assert sum(b["points"] for b in bands) == min(data.train.states_clean[..., 0].size, 20000)
+    assert all(b[k] == 0.0 for b in bands for k in ("m_ax", "m_ay", "c_q", "c_l"))
+    assert all(a["sigma_hi"] == b["sigma_lo"] for a, b in itertools.pairwise(bands))
+    shares = [b["quadratic_share"] for b in bands]
+    assert all(0 < x < 1 for x in shares) and shares == sorted(shares)
+
+
+def test_recovery_shows_a_drag_equivalent_split_per_sigma_band(data):
+    """c_l − δ with c_q + δ/(½ρAσ) gives the same drag; recovery must show the error where it is."""
+    from fhnn.evaluation.recovery import coefficient_recovery, visited_r_sigma
+    from fhnn.physics.body import AbstractCoefficients
+
+    truth = data.equations()
+    body = data.body()
+    half_rho_a, delta = 0.5 * body.rho * body.area, 0.3
+
+    class Shifted(AbstractCoefficients):
+        inner: AbstractCoefficients
+
+        def __call__(self, r, sigma):
+            c = self.inner(r, sigma)
+            return c.at[2].add(delta / (half_rho_a * sigma)).at[3].add(-delta)
+
+    coef = coefficient_recovery(Shifted(truth.coefficients), data)
+    points = visited_r_sigma(truth, data)
+    want = np.asarray(jax.vmap(truth.coefficients)(jnp.asarray(points[:, 0]), jnp.asarray(points[:, 1])))
+    rel_cq = delta / (half_rho_a * points[:, 1]) / want[:, 2]
+    assert coef["c_l"]["max_rel"] == pytest.approx(delta / 3.0, rel=1e-12)
+    assert coef["c_q"]["max_rel"] == pytest.approx(rel_cq.max(), rel=1e-9)
+    for band in coef["_by_sigma"]:
+        inside = (points[:, 1] >= band["sigma_lo"]) & (points[:, 1] <= band["sigma_hi"])
+        assert band["c_q"] <= rel_cq[inside].max() * (1 + 1e-9)
+        assert band["c_q"] >= rel_cq[points[:, 1] >= band["sigma_lo"]].min()
+        assert band["m_ax"] == 0.0 and band["c_l"] == pytest.approx(delta / 3.0, rel=1e-12)
+    # the error falls with σ: the first band holds the worst point
+    assert coef["_by_sigma"][0]["c_q"] == pytest.approx(rel_cq.max(), rel=1e-9)
 
 
 def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
@@ -240,6 +279,7 @@ def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
     )
     code, out = run(["inspect", str(tmp_path / "run")])
     assert code == 0 and "flow: relative L2 error" in out.out
+    assert "c_q by σ band" in out.out and "quadratic share" in out.out
     for name in ("flow.png", "coefficients.png"):
         assert (tmp_path / "run" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, out = run(["evaluate", str(tmp_path / "run"), "--horizons", "1,99"])

@@ -299,6 +299,20 @@ def inspect(
             f"{c['max_rel']:.2%}",
         )
     stdout.print(table)
+    bands = Table(
+        title="c_q by σ band (quantiles of the visited σ); small quadratic share: c_q weakly constrained",
+        title_justify="left",
+    )
+    for col in ("σ [m/s]", "points", "quadratic share of drag", "c_q max rel. error"):
+        bands.add_column(col, justify="right")
+    for b in coef["_by_sigma"]:
+        bands.add_row(
+            f"{_fmt(b['sigma_lo'])} – {_fmt(b['sigma_hi'])}",
+            str(b["points"]),
+            f"{b['quadratic_share']:.1%}",
+            f"{b['c_q']:.2%}",
+        )
+    stdout.print(bands)
     if dataset.actuation == "none":
         stdout.print(
             "note: trained without actuation — only the ratios c / (M + m_a) are identifiable; "

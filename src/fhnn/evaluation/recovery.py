@@ -2,7 +2,10 @@
 
 - Coefficients: the learned ``(m_ax, m_ay, c_q, c_l)(r, σ)`` against the true laws at the
   ``(r, σ)`` pairs the training data visits; per coefficient the mean and the maximum relative
-  error over those pairs.
+  error over those pairs; and the same per band of σ (quantile bands of the visited σ), with the
+  share ``½ρA c_q σ / (½ρA c_q σ + c_l)`` of the quadratic term in the true drag there — where
+  that share is small the data constrain ``c_q`` only weakly (the drag force is
+  ``−(½ρA c_q σ + c_l) v_rel``, so ``c_q`` at small σ is a small correction to ``c_l``).
 - Flow: relative L2 error ``‖u_θ − u‖ / ‖u‖`` over the grid points (within the bounding box of
   the training positions) that lie within ``reach`` of a training position.
 """
@@ -40,16 +43,23 @@ def _coefficients_at(coefficients: AbstractCoefficients, points: jax.Array) -> j
     return jax.vmap(coefficients)(points[:, 0], points[:, 1])
 
 
-def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dict[str, dict[str, float]]:
-    """Per coefficient: ``mean_rel``, ``max_rel`` error and the ranges of learned and true values."""
+#: Quantiles of the visited σ that bound the bands of :func:`coefficient_recovery`'s ``_by_sigma``.
+SIGMA_BANDS = (0.0, 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
+
+
+def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dict[str, Any]:
+    """Per coefficient: ``mean_rel``, ``max_rel`` error and the ranges of learned and true values;
+    ``_coverage``: the (r, σ) ranges [m, m/s]; ``_by_sigma``: per σ band (quantiles
+    :data:`SIGMA_BANDS` of the visited σ) its bounds [m/s], number of points, the true quadratic
+    share of the drag and each coefficient's maximum relative error."""
     truth_eom = dataset.equations()
     points = visited_r_sigma(truth_eom, dataset)
     got = np.asarray(_coefficients_at(learned, jnp.asarray(points)))
     want = np.asarray(_coefficients_at(truth_eom.coefficients, jnp.asarray(points)))
-    out: dict[str, dict[str, float]] = {}
+    out: dict[str, Any] = {}
+    rel_all = np.abs(got - want) / np.maximum(np.abs(want), 1e-12)
     for i, name in enumerate(COEFFICIENT_NAMES):
-        denom = np.maximum(np.abs(want[:, i]), 1e-12)
-        rel = np.abs(got[:, i] - want[:, i]) / denom
+        rel = rel_all[:, i]
         out[name] = {
             "mean_rel": float(rel.mean()),
             "max_rel": float(rel.max()),
@@ -64,6 +74,23 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
         "sigma_min": float(points[:, 1].min()),
         "sigma_max": float(points[:, 1].max()),
     }
+    sigma = points[:, 1]
+    body = dataset.body()
+    quad = 0.5 * body.rho * body.area * want[:, 2] * sigma
+    share = quad / np.maximum(quad + want[:, 3], 1e-300)
+    edges = np.quantile(sigma, SIGMA_BANDS)
+    band = np.clip(np.searchsorted(edges, sigma, side="right") - 1, 0, len(edges) - 2)
+    out["_by_sigma"] = [
+        {
+            "sigma_lo": float(edges[b]),
+            "sigma_hi": float(edges[b + 1]),
+            "points": int(np.sum(band == b)),
+            "quadratic_share": float(share[band == b].mean()),
+            **{name: float(rel_all[band == b, i].max()) for i, name in enumerate(COEFFICIENT_NAMES)},
+        }
+        for b in range(len(edges) - 1)
+        if np.any(band == b)
+    ]
     return out
 
 
