@@ -1,7 +1,18 @@
-"""Shared fixtures. Importing fhnn switches JAX to float64 for the whole test session."""
+"""Shared fixtures. Importing fhnn switches JAX to float64 for the whole test session.
+
+Each test process keeps a persistent JAX compilation cache in a private temporary folder (removed
+at exit): the many trainers the tests build compile the same programs again (a resumed run, the
+straight run it is compared with), and a cache hit gives the same executable, so results are
+unchanged and the suite spends less time in XLA.
+"""
 
 from __future__ import annotations
 
+import atexit
+import shutil
+import tempfile
+
+import jax
 import numpy as np
 import pytest
 
@@ -9,6 +20,11 @@ import fhnn  # noqa: F401  (enables float64)
 from fhnn.data.dataset import Dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
+
+_CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
+atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
+jax.config.update("jax_compilation_cache_dir", _CACHE)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 #: Small data sets: every split present, short trajectories, fast to simulate.
 SMALL = dict(n_traj=6, duration=3.0, test_duration=6.0)
