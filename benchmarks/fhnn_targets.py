@@ -85,8 +85,8 @@ def main() -> None:
         for h, target, paper in (("1", 1e-5, 1.07e-4), ("5", 6e-5, 6.09e-4), ("60", 0.35, 3.51)):
             m = res[h]
             print(
-                f"  RMSE(pos) @ {h:>2} s = {m['rmse_pos']:.3e} m  target {target:.0e}  paper {paper:.2e}  "
-                f"ratio to target {m['rmse_pos'] / target:.2f}  diverged {m['diverged']}  "
+                f"  RMSE(pos) @ {h:>2} s = {m['rmse_pos']:.3e} m  target {target:g}  paper {paper:.2e}  "
+                f"ratio to target {m['rmse_pos'] / target:.2g}  diverged {m['diverged']}  "
                 f"outside training region {m['outside_training']:.0%}"
             )
         report["solid_body_vortex"] = {"seconds": secs, "metrics": res}
