@@ -12,19 +12,18 @@ import atexit
 import shutil
 import tempfile
 
-import jax
 import numpy as np
 import pytest
 
 import fhnn  # noqa: F401  (enables float64)
 from fhnn.data.dataset import Dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.experiments.executors import use_compilation_cache
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
 
 _CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
 atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
-jax.config.update("jax_compilation_cache_dir", _CACHE)
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+use_compilation_cache(_CACHE)
 
 #: Small data sets: every split present, short trajectories, fast to simulate.
 SMALL = dict(n_traj=6, duration=3.0, test_duration=6.0)

@@ -80,17 +80,20 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
     share = quad / np.maximum(quad + want[:, 3], 1e-300)
     edges = np.quantile(sigma, SIGMA_BANDS)
     band = np.clip(np.searchsorted(edges, sigma, side="right") - 1, 0, len(edges) - 2)
-    out["_by_sigma"] = [
-        {
-            "sigma_lo": float(edges[b]),
-            "sigma_hi": float(edges[b + 1]),
-            "points": int(np.sum(band == b)),
-            "quadratic_share": float(share[band == b].mean()),
-            **{name: float(rel_all[band == b, i].max()) for i, name in enumerate(COEFFICIENT_NAMES)},
-        }
-        for b in range(len(edges) - 1)
-        if np.any(band == b)
-    ]
+    out["_by_sigma"] = []
+    for b in range(len(edges) - 1):
+        inside = band == b
+        if not inside.any():
+            continue
+        out["_by_sigma"].append(
+            {
+                "sigma_lo": float(edges[b]),
+                "sigma_hi": float(edges[b + 1]),
+                "points": int(inside.sum()),
+                "quadratic_share": float(share[inside].mean()),
+                **dict(zip(COEFFICIENT_NAMES, rel_all[inside].max(axis=0).tolist(), strict=True)),
+            }
+        )
     return out
 
 
