@@ -13,7 +13,9 @@ better) accuracy. Usage::
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -22,8 +24,10 @@ import fhnn
 from fhnn.data.simulate import integrate
 from fhnn.physics.actuation import sample_actuation
 from fhnn.physics.dynamics import EquationsOfMotion
-from fhnn.physics.reference import reference_actuation, reference_vector_field
 from fhnn.physics.scenarios import get_scenario
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from tests.reference import reference_actuation, reference_vector_field
 
 
 def scipy_solve(f, y0, act, ts, tol):

@@ -18,8 +18,8 @@ import pytest
 import fhnn  # noqa: F401  (enables float64)
 from fhnn.data.dataset import Dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
-from fhnn.experiments.executors import use_compilation_cache
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
+from fhnn.runtime import use_compilation_cache
 
 _CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
 atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)

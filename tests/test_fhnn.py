@@ -14,7 +14,9 @@ from fhnn.evaluation.rollout import rollout
 from fhnn.models.fhnn import FHNN, FHNNConfig, cap, uncap
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.flows import AbstractFlow
-from fhnn.training.run import Run, build_arguments, build_model, check_trainable
+from fhnn.models.fhnn import fhnn_arguments as build_arguments
+from fhnn.models.registry import MODELS
+from fhnn.training.run import Run, RunConfig, check_trainable
 from fhnn.training.trainer import TrainConfig
 
 from .conftest import small_dataset
@@ -107,10 +109,7 @@ def test_short_training_lowers_validation_error(data, tmp_path):
     run = Run.create(
         tmp_path / "r",
         data,
-        "mem",
-        "fhnn",
-        FHNNConfig(width=32),
-        TrainConfig(steps=600, val_every=100, lr=3e-3),
+        RunConfig(model=FHNNConfig(width=32), train=TrainConfig(steps=600, val_every=100, lr=3e-3)),
     )
     state = run.train(data, save=False)
     first, best = state.history[0], state.best_val
@@ -124,9 +123,9 @@ def test_short_training_lowers_validation_error(data, tmp_path):
 def test_checkpoint_round_trip_and_exact_resume(data, tmp_path):
     cfg = FHNNConfig(width=16)
     tc = TrainConfig(steps=40, val_every=10, batch_size=32, warmup_steps=4, lbfgs_pairs=200)
-    straight = Run.create(tmp_path / "a", data, "mem", "fhnn", cfg, tc)
+    straight = Run.create(tmp_path / "a", data, RunConfig(model=cfg, train=tc))
     straight.train(data)
-    stopped = Run.create(tmp_path / "b", data, "mem", "fhnn", cfg, tc)
+    stopped = Run.create(tmp_path / "b", data, RunConfig(model=cfg, train=tc))
     stopped.train(data, until=20)
     resumed = Run.load(tmp_path / "b")
     assert resumed.state.step == 20
@@ -143,7 +142,7 @@ def test_checkpoint_round_trip_and_exact_resume(data, tmp_path):
 
 def test_bad_checkpoints_and_data(data, tmp_path):
     run = Run.create(
-        tmp_path / "a", data, "mem", "fhnn", FHNNConfig(width=8), TrainConfig(steps=2, val_every=1)
+        tmp_path / "a", data, RunConfig(model=FHNNConfig(width=8), train=TrainConfig(steps=2, val_every=1))
     )
     run.train(data)
     with pytest.raises(DataFormatError, match="checkpoint is a 'fhnn' model, not 'hnn'"):
@@ -164,7 +163,7 @@ def test_bad_checkpoints_and_data(data, tmp_path):
 def test_rollout_tolerance_error_is_far_below_reported_errors(data):
     # a random (untrained) FHNN is a rough vector field; its rollout at the default tolerance must
     # agree with a 1000x tighter solve far below the accuracy targets (1e-5 m)
-    model = build_model("fhnn", FHNNConfig(width=16), build_arguments(data), seed=3)
+    model = MODELS["fhnn"].make(FHNNConfig(width=16), build_arguments(data), 3)
     loose = rollout(model, data.test)
     tight = rollout(model, data.test, rtol=1e-13, atol=1e-13)
     assert loose.ok.all() and tight.ok.all()
@@ -176,7 +175,7 @@ def test_far_field_term_extrapolates_solid_body_rotation_and_is_not_penalised():
 
     ds = small_dataset("solid_body_vortex")
     args = build_arguments(ds)
-    model = build_model("fhnn", FHNNConfig(width=8), args, seed=0)
+    model = MODELS["fhnn"].make(FHNNConfig(width=8), args, 0)
     flow = model.flow
     # zero the MLP, set Q so that ψ = −(Ω/2) r²: ψ_scale · ½ q ξ² with ξ = x / L
     zeroed = jax.tree_util.tree_map(lambda x: jnp.zeros_like(x) if eqx.is_array(x) else x, flow.mlp)
@@ -263,9 +262,9 @@ def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
             "--steps",
             "20",
             "--set",
-            "width=8",
+            "model.width=8",
             "--set",
-            "val_every=10",
+            "train.val_every=10",
             "-q",
         ]
     )
@@ -295,7 +294,7 @@ def test_warmup_fits_the_linear_flow_first_so_rotation_extrapolates(tmp_path):
 
     ds = small_dataset("solid_body_vortex", n_traj=8, duration=2.0)
     config = TrainConfig(steps=0, warmup_steps=60, lbfgs_pairs=1500, val_every=20)
-    run = Run.create(tmp_path / "r", ds, "mem", "fhnn", FHNNConfig(width=16), config)
+    run = Run.create(tmp_path / "r", ds, RunConfig(model=FHNNConfig(width=16), train=config))
     initial = run.skeleton()
     state = run.train(ds, save=False)
     model = state.best_model
@@ -319,8 +318,8 @@ def test_coefficients_held_outside_the_training_radii():
     lo, hi = args["r_range"]
     radius = np.hypot(ds.train.states[..., 0], ds.train.states[..., 1])
     assert (lo, hi) == (radius.min(), radius.max())
-    held = build_model("fhnn", FHNNConfig(width=8), args, seed=0).coefficients
-    free = build_model("fhnn", FHNNConfig(width=8, r_extrapolation="net"), args, seed=0).coefficients
+    held = MODELS["fhnn"].make(FHNNConfig(width=8), args, 0).coefficients
+    free = MODELS["fhnn"].make(FHNNConfig(width=8, r_extrapolation="net"), args, 0).coefficients
     at = lambda c, r: np.asarray(c(jnp.asarray(r), jnp.asarray(0.3)))  # noqa: E731
     np.testing.assert_array_equal(at(held, 5 * hi), at(held, hi))
     np.testing.assert_array_equal(at(held, 0.0), at(held, lo))

@@ -21,6 +21,7 @@ from fhnn.experiments.executors import Task, run_local
 from fhnn.experiments.grid import HORIZONS, ReproduceConfig, build_grid
 from fhnn.experiments.reproduce import check_output_folder, reproduce
 from fhnn.experiments.tables import build_tables, layout, to_csv, to_json
+from fhnn.training.trainer import TrainConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -51,7 +52,7 @@ def test_default_grid_covers_every_table_without_repeats() -> None:
 def test_job_ids_change_with_what_determines_the_result_only() -> None:
     _, a = build_grid(ReproduceConfig(seeds=1))
     _, b = build_grid(ReproduceConfig(seeds=1))
-    _, c = build_grid(ReproduceConfig(seeds=1, steps=1501))
+    _, c = build_grid(ReproduceConfig(seeds=1, train=TrainConfig(steps=1501)))
     _, d = build_grid(ReproduceConfig(seeds=2, models=("fhnn",)))
     assert [j.id for j in a] == [j.id for j in b]
     assert not {j.id for j in a} & {j.id for j in c}
@@ -65,10 +66,10 @@ def test_job_ids_change_with_what_determines_the_result_only() -> None:
         ({"models": ("fhnn", "gpt")}, "unknown name 'gpt' in models"),
         ({"ablations": ("no_flow", "no_flow")}, "lists a name twice"),
         ({"main_scenarios": ("vortex",)}, "unknown name 'vortex' in main_scenarios"),
-        ({"test_duration": 60.0}, "test_duration must cover the longest horizon"),
+        ({"data": {"test_duration": 60.0}}, "test_duration must cover the longest horizon"),
         ({"seeds": 0}, "seeds"),
-        ({"n_traj": 2}, "n_traj must be >= 3"),
-        ({"dt": -0.1}, "dt must be > 0"),
+        ({"data": {"n_traj": 2}}, "n_traj must be >= 3"),
+        ({"data": {"dt": -0.1}}, "dt must be > 0"),
         ({"sedes": 2}, "did you mean 'seeds'"),
     ],
 )
@@ -93,7 +94,7 @@ def test_output_folder_that_holds_something_else_is_refused(tmp_path: Path) -> N
         (["--seeds", "0"], "error: reproduce: seeds must be > 0, got 0"),
         (["--workers", "0"], "error: --workers must be >= 1, got 0"),
         (["--set", "seeds"], "error: --param expects NAME=VALUE"),
-        (["--set", "test_duration=30"], "error: reproduce: test_duration must cover the longest horizon"),
+        (["--set", "data.test_duration=30"], "error: reproduce: test_duration must cover the longest horizon"),
     ],
 )
 def test_reproduce_cli_bad_input_is_one_line_exit_2_and_writes_nothing(
@@ -222,11 +223,8 @@ def test_a_failing_job_is_reported_by_name_after_the_others_finish(tmp_path: Pat
 
 TWO_JOBS = {
     "seeds": 1,
-    "steps": 30,
-    "val_every": 30,
-    "n_traj": 6,
-    "duration": 1.0,
-    "dt": 0.1,
+    "train": {"steps": 30, "val_every": 30},
+    "data": {"n_traj": 6, "duration": 1.0, "dt": 0.1},
     "models": ("fhnn", "node"),
     "ablations": (),
     "main_scenarios": ("steady_vortex",),

@@ -9,10 +9,10 @@ from fhnn.data.simulate import SimulationConfig, integrate, simulate_dataset
 from fhnn.errors import ConfigError
 from fhnn.physics.actuation import no_actuation
 from fhnn.physics.dynamics import EquationsOfMotion
-from fhnn.physics.reference import reference_actuation, reference_vector_field
 from fhnn.physics.scenarios import get_scenario
 
 from .conftest import small_dataset
+from .reference import reference_actuation, reference_vector_field
 
 STILL = dict(gamma=0.0, m_ax=12.0, m_ay=20.0, c_l=3.0)
 

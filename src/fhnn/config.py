@@ -26,9 +26,12 @@ import difflib
 import functools
 import json
 import math
+import os
+import tomllib
 import types
 import typing
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, ClassVar, TypeVar
 
 from fhnn.errors import ConfigError
@@ -75,6 +78,122 @@ class Config:
         """A copy with ``changes`` applied (unknown names rejected, values validated)."""
         return type(self).from_dict({**self.to_dict(), **changes})
 
+    def setting_names(self) -> tuple[str, ...]:
+        """The dotted names of every leaf setting (``"train.lr"``); nested configurations recurse."""
+        names: list[str] = []
+        for name in self.field_names():
+            value = getattr(self, name)
+            if isinstance(value, Config):
+                names += [f"{name}.{sub}" for sub in value.setting_names()]
+            else:
+                names.append(name)
+        return tuple(names)
+
+    def with_settings(self: C, settings: Mapping[str, Any]) -> C:
+        """A copy with dotted-name ``settings`` applied (``{"train.lr": "1e-3"}``); an unknown name
+        is refused with the closest valid one, values are converted and validated."""
+        check_setting_names(self, settings)
+        return type(self).from_dict(deep_merge(self.to_dict(), nest(settings)))
+
+    def differences(self, other: Config) -> list[str]:
+        """Dotted names of the settings whose values differ between ``self`` and ``other``."""
+        mine, theirs = flatten(self.to_dict()), flatten(other.to_dict())
+        return [
+            k for k in dict.fromkeys([*mine, *theirs]) if mine.get(k, _MISSING) != theirs.get(k, _MISSING)
+        ]
+
+
+_MISSING = object()
+
+
+def nest(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"a.b": 1, "c": 2}`` → ``{"a": {"b": 1}, "c": 2}``."""
+    out: dict[str, Any] = {}
+    for key, value in settings.items():
+        parts = key.split(".")
+        node = out
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"setting {key!r} conflicts with a value given for {part!r}")
+        if isinstance(node.get(parts[-1]), dict):
+            raise ConfigError(f"setting {key!r} names a section, not a value")
+        node[parts[-1]] = value
+    return out
+
+
+def flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` → ``{"a.b": 1}`` (the inverse of :func:`nest`)."""
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flatten(value, f"{name}."))
+        else:
+            out[name] = value
+    return out
+
+
+def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``overrides`` applied recursively (mappings merged, other values replaced)."""
+    out = dict(base)
+    for key, value in overrides.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = deep_merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def read_settings_file(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Settings from a TOML (``.toml``) or JSON file as dotted names: sections become prefixes
+    (``[train]`` / ``{"train": {...}}`` with ``lr = 1e-3`` gives ``train.lr``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"settings file '{path}' does not exist")
+    try:
+        if path.suffix.lower() == ".toml":
+            with path.open("rb") as f:
+                values = tomllib.load(f)
+        elif path.suffix.lower() == ".json":
+            values = json.loads(path.read_text(encoding="utf-8"))
+        else:
+            raise ConfigError(f"settings file '{path}' must end in .toml or .json")
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"settings file '{path}' is not valid {path.suffix[1:].upper()}: {exc}") from None
+    if not isinstance(values, Mapping):
+        raise ConfigError(
+            f"settings file '{path}' must hold a table of settings, got {type(values).__name__}"
+        )
+    return flatten(values)
+
+
+def get_setting(config: Config, name: str) -> Any:
+    """The value of the dotted setting ``name`` of ``config``."""
+    value: Any = config
+    for part in name.split("."):
+        value = getattr(value, part)
+    return value
+
+
+def check_setting_names(config: Config, names: typing.Iterable[str]) -> None:
+    """Raise :class:`ConfigError` for the first of ``names`` that is not a setting of ``config``,
+    suggesting the closest valid dotted name."""
+    valid = config.setting_names()
+    for name in names:
+        if name in valid:
+            continue
+        same_leaf = [v for v in valid if v.rsplit(".", 1)[-1] == name.rsplit(".", 1)[-1]]
+        close = same_leaf or difflib.get_close_matches(name, valid, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        section = name.rsplit(".", 1)[0] + "." if "." in name else ""
+        listed = [v for v in valid if section and v.startswith(section)] or list(
+            dict.fromkeys(v.split(".")[0] + (".*" if "." in v else "") for v in valid)
+        )
+        raise ConfigError(
+            f"unknown setting {name!r} for {config.describe()}{hint}; valid: {', '.join(listed)}"
+        )
+
 
 def frozen_config(cls: type[C]) -> type[C]:
     """Make ``cls`` a frozen, keyword-only dataclass whose constructor rejects unknown fields."""
@@ -105,6 +224,12 @@ def _reject_unknown(cls: type[Config], names: typing.Iterable[str]) -> None:
 
 def coerce(hint: Any, value: Any, what: str) -> Any:
     """Convert ``value`` (possibly a string from the command line) to the type ``hint``."""
+    if isinstance(hint, type) and issubclass(hint, Config):
+        if isinstance(value, hint):
+            return value
+        if isinstance(value, Mapping):
+            return hint.from_dict(value)
+        raise ConfigError(f"{what} must be a section of settings, got {value!r}")
     origin = typing.get_origin(hint)
     args = typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):

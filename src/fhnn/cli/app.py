@@ -16,11 +16,15 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from fhnn.data.dataset import check_output_path, read_dataset, write_dataset
+from fhnn.config import coerce, get_setting, read_settings_file
+from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
+from fhnn.files import check_output_path
+from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, scenario_class
+from fhnn.training.plans import PLANS, get_plan
 
 # Typer >= 0.29 vendors its own click; older releases raise click's exceptions.
 _USAGE_ERRORS: tuple[type[Exception], ...] = (typer.TyperException,)
@@ -149,52 +153,98 @@ def scenarios() -> None:
         stdout.print(table)
 
 
+def _settings(set_: list[str] | None, config_file: Path | None, flags: dict[str, Any]) -> dict[str, Any]:
+    """Dotted settings from ``--config FILE``, then ``--set NAME=VALUE`` (which wins), then the
+    dedicated flags (``flags``: setting name → (flag, value or None)); a flag that disagrees with
+    the same setting given by ``--set`` or the file is refused."""
+    settings: dict[str, Any] = read_settings_file(config_file) if config_file is not None else {}
+    settings.update(parse_params(set_ or []))
+    for name, (flag, value) in flags.items():
+        if value is None:
+            continue
+        if name in settings and str(settings[name]) != str(value):
+            try:
+                same = coerce(type(value), settings[name], name) == value
+            except ConfigError:
+                same = False
+            if not same:
+                raise ConfigError(
+                    f"{flag} {value} and the setting {name}={settings[name]} disagree; give one"
+                )
+        settings[name] = value
+    return settings
+
+
 @app.command()
 def train(
     data: Annotated[Path, typer.Argument(help="Training data set (HDF5).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Run folder to create (or resume).")],
-    model: Annotated[str, typer.Option(help="Model: fhnn|node|hnn|lnn|dhnn|sindy.")] = "fhnn",
+    model: Annotated[str | None, typer.Option(help=f"Model kind: {'|'.join(MODELS)} [default: fhnn]")] = None,
     ablation: Annotated[
-        str, typer.Option(help="none|no_added_mass|no_linear_drag|no_flow|shallow|relu")
-    ] = "none",
-    steps: Annotated[int | None, typer.Option(help="Optimiser steps [default: 20000]")] = None,
-    seed: Annotated[int, typer.Option(help="Seed of initialisation and batch order.")] = 0,
+        str | None, typer.Option(help=f"FHNN ablation: none|{'|'.join(MODELS['fhnn'].variants)}")
+    ] = None,
+    plan: Annotated[
+        str | None,
+        typer.Option(help=f"Training plan: {'|'.join(PLANS)} (see README) [default: adam]"),
+    ] = None,
+    steps: Annotated[int | None, typer.Option(help="Adam steps (train.steps) [default: 20000]")] = None,
+    seed: Annotated[
+        int | None, typer.Option(help="Seed of initialisation and batch order (train.seed) [default: 0]")
+    ] = None,
+    config_file: Annotated[
+        Path | None,
+        typer.Option("--config", help="Settings file (TOML or JSON), sections [model] and [train]."),
+    ] = None,
     set_: Annotated[
         list[str] | None,
         typer.Option(
             "--set",
             metavar="NAME=VALUE",
-            help="Model or training option NAME=VALUE, e.g. width=32, lr=1e-3 (repeatable).",
+            help="A setting by dotted name, e.g. model.width=32, train.lr=1e-3 (repeatable; wins "
+            "over --config).",
         ),
     ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
 ) -> None:
-    """Train a model on a data set; resumes if RUN already holds a checkpoint of the same model."""
-    from fhnn.training.run import MODELS, Run
-    from fhnn.training.trainer import TrainConfig
+    """Train a model on a data set. If RUN already holds a run it is resumed; options that differ
+    from the ones it was started with are refused."""
+    from fhnn.training.run import Run, RunConfig
 
-    if model not in MODELS:
-        raise ConfigError(f"unknown model {model!r}; available: {', '.join(MODELS)}")
-    config_class = MODELS[model]
-    options = parse_params(set_ or [])
-    model_fields, train_fields = set(config_class.field_names()), set(TrainConfig.field_names())
-    model_options = {k: v for k, v in options.items() if k in model_fields}
-    if ablation != "none":
-        if model != "fhnn":
-            raise ConfigError(f"--ablation applies to fhnn only, not {model!r}")
-        model_options["ablation"] = ablation
-    model_config = config_class.from_dict(model_options)
-    train_opts = {k: v for k, v in options.items() if k in train_fields}
-    train_opts["seed"] = seed
-    if steps is not None:
-        train_opts["steps"] = steps
-    train_config = TrainConfig.from_dict(train_opts)
+    settings = _settings(
+        set_,
+        config_file,
+        {
+            "kind": ("--model", model),
+            "model.ablation": ("--ablation", ablation),
+            "train.steps": ("--steps", steps),
+            "train.seed": ("--seed", seed),
+        },
+    )
+    kind = str(settings.get("kind", "fhnn"))
+    MODELS[kind]  # unknown kinds are refused before anything is read
+    if "model.ablation" in settings and settings["model.ablation"] != "none" and kind != "fhnn":
+        raise ConfigError(f"--ablation applies to fhnn only, not {kind!r}")
+    if plan is not None:  # the plan's training fields, below any train.* setting given
+        plan_train = {f"train.{k}": v for k, v in get_plan(plan).train.to_dict().items()}
+        settings = {**plan_train, **settings}
+    config = RunConfig().with_settings(settings)  # every setting checked before any work
     dataset = read_dataset(data)
     if (out / "run.json").exists():
-        run = Run.load(out, expect_model=model)
+        run = Run.load(out, expect_model=kind if "kind" in settings else None)
+        wanted = run.config.with_settings(settings)
+        changed = run.config.differences(wanted)
+        if changed:
+            detail = ", ".join(
+                f"{k}: {get_setting(run.config, k)!r} stored, {get_setting(wanted, k)!r} given"
+                for k in changed
+            )
+            raise ConfigError(
+                f"{out} holds a run started with other settings ({detail}); rerun without them to "
+                "resume it, or train into a new folder"
+            )
         err.print(f"resuming {out} from step {run.state.step}")
     else:
-        run = Run.create(out, dataset, str(data), model, model_config, train_config)
+        run = Run.create(out, dataset, config, data_path=data)
     total = run.train_config.steps + run.train_config.lbfgs_steps
     with Progress(
         TextColumn("training"),
@@ -346,12 +396,17 @@ def reproduce(
             "(start one here). Needs pip install 'fhnn[ray]'.",
         ),
     ] = None,
+    config_file: Annotated[
+        Path | None,
+        typer.Option("--config", help="Settings file (TOML or JSON), e.g. [train] steps = 3000."),
+    ] = None,
     set_: Annotated[
         list[str] | None,
         typer.Option(
             "--set",
             metavar="NAME=VALUE",
-            help="Any reproduction setting NAME=VALUE, e.g. models=fhnn,node (repeatable).",
+            help="A reproduction setting by dotted name, e.g. models=fhnn,node, data.n_traj=50, "
+            "train.lbfgs_steps=200, model.fhnn.width=32 (repeatable; wins over --config).",
         ),
     ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
@@ -361,18 +416,15 @@ def reproduce(
     Finished jobs are kept: an interrupted run resumes, an unchanged one does nothing."""
     import signal
 
+    from fhnn.experiments.executors import check_workers
     from fhnn.experiments.grid import ReproduceConfig, build_grid
     from fhnn.experiments.reproduce import check_output_folder
     from fhnn.experiments.reproduce import reproduce as run_reproduction
 
-    options: dict[str, Any] = dict(parse_params(set_ or []))
-    if seeds is not None:
-        options["seeds"] = seeds
-    if steps is not None:
-        options["steps"] = steps
-    config = ReproduceConfig.quick(**options) if quick else ReproduceConfig.from_dict(options)
-    if workers is not None and workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    settings = _settings(set_, config_file, {"seeds": ("--seeds", seeds), "train.steps": ("--steps", steps)})
+    config = ReproduceConfig.quick(settings) if quick else ReproduceConfig().with_settings(settings)
+    if workers is not None:
+        check_workers(workers)
     check_output_folder(out)
     n_data, n_jobs = (len(x) for x in build_grid(config))
     err.print(f"reproduce: {n_data} data sets, {n_jobs} training jobs ({config.seeds} seed(s)) -> {out}")
@@ -406,13 +458,14 @@ def reproduce(
 
 
 def _load_run(run_dir: Path, data: Path | None, *, fhnn_only: bool = False) -> tuple[Any, Any]:
-    """A trained run and the data set to score it on (default: the one it was trained on)."""
+    """A trained run and the data set to score it on (default: the one it was trained on, found
+    relative to the run folder and checked against its SHA-256)."""
     from fhnn.training.run import Run
 
     run = Run.load(run_dir)
     if fhnn_only and run.kind != "fhnn":
         raise ConfigError(f"inspect needs an fhnn run; a {run.kind!r} model has no flow or coefficients")
-    return run, read_dataset(data if data is not None else run.meta["data"])
+    return run, read_dataset(data) if data is not None else run.dataset()
 
 
 def _fmt(x: float) -> str:

@@ -18,12 +18,9 @@ and raises :class:`~fhnn.errors.DataFormatError` with a one-line reason otherwis
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import os
-import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +28,7 @@ import h5py
 import numpy as np
 
 from fhnn.errors import DataFormatError
+from fhnn.files import atomic_output
 from fhnn.physics.body import Body
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.scenarios import Scenario, scenario_class
@@ -51,6 +49,11 @@ REQUIRED_ATTRS = (
     "obs_noise",
     "version",
 )
+
+
+def samples_until(t: np.ndarray, until: float) -> int:
+    """How many of the increasing sample times ``t`` [s] lie at or before ``until`` [s] (to 1e-9 s)."""
+    return int(np.searchsorted(t, until - 1e-9)) + 1
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -167,41 +170,6 @@ class Dataset:
         for key, value in self.extra.items():
             out[key] = json.dumps(value) if isinstance(value, dict | list) else value
         return out
-
-
-def check_output_path(path: str | os.PathLike[str]) -> Path:
-    """Raise :class:`DataFormatError` unless ``path`` can be written as a file (its folder exists)."""
-    target = Path(path)
-    if not target.parent.is_dir():
-        raise DataFormatError(f"output folder '{target.parent}' does not exist")
-    if target.is_dir():
-        raise DataFormatError(f"output path '{target}' is a folder")
-    return target
-
-
-@contextlib.contextmanager
-def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success rename it to ``path``, else remove it."""
-    target = check_output_path(path)
-    parent = target.parent
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        yield tmp
-        os.replace(tmp, target)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def write_atomic(path: str | os.PathLike[str], data: str | bytes) -> Path:
-    """Write ``data`` (text as UTF-8) to ``path`` through :func:`atomic_output`; returns the path."""
-    with atomic_output(path) as tmp:
-        if isinstance(data, str):
-            tmp.write_text(data, encoding="utf-8")
-        else:
-            tmp.write_bytes(data)
-    return Path(path)
 
 
 def write_dataset(dataset: Dataset, path: str | os.PathLike[str]) -> Path:

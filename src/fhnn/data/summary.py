@@ -19,8 +19,17 @@ from fhnn.physics.dynamics import EquationsOfMotion
 
 @eqx.filter_jit
 def _relative_speed(eom: EquationsOfMotion, states: jax.Array, ts: jax.Array) -> jax.Array:
-    over_time = jax.vmap(eom.relative_speed, in_axes=(0, 0))
-    return jax.vmap(over_time, in_axes=(0, None))(states, ts)
+    return jax.vmap(eom.relative_speed)(states, ts)
+
+
+def relative_speeds(eom: EquationsOfMotion, states: np.ndarray, ts: np.ndarray) -> np.ndarray:
+    """``σ = ‖v − u(x, t)‖ + ε`` [m/s] in the flow of ``eom`` for states of shape ``(..., 4)`` at
+    times ``ts`` broadcastable to ``states.shape[:-1]``; shape ``states.shape[:-1]``."""
+    states = np.asarray(states)
+    shape = states.shape[:-1]
+    flat_t = np.broadcast_to(np.asarray(ts, dtype=float), shape).reshape(-1)
+    out = _relative_speed(eom, jnp.asarray(states.reshape(-1, 4)), jnp.asarray(flat_t))
+    return np.asarray(out).reshape(shape)
 
 
 def coverage(eom: EquationsOfMotion, split: Split) -> dict[str, tuple[float, float]]:
@@ -29,7 +38,7 @@ def coverage(eom: EquationsOfMotion, split: Split) -> dict[str, tuple[float, flo
     s = split.states_clean
     r = np.hypot(s[..., 0], s[..., 1])
     speed = np.hypot(s[..., 2], s[..., 3])
-    sigma = np.asarray(_relative_speed(eom, jnp.asarray(s), jnp.asarray(split.t)))
+    sigma = relative_speeds(eom, s, split.t)
     force = np.hypot(split.forces[..., 0], split.forces[..., 1])
     as_range = lambda a: (float(np.min(a)), float(np.max(a)))  # noqa: E731
     return {

@@ -4,21 +4,17 @@ from __future__ import annotations
 
 from typing import Any
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from fhnn.data.dataset import Dataset
-from fhnn.data.summary import coverage
+from fhnn.data.dataset import Dataset, samples_until
+from fhnn.data.summary import coverage, relative_speeds
 from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import trajectory_metrics
-from fhnn.evaluation.rollout import rollout
-from fhnn.models.base import AbstractVectorField
-from fhnn.training.trainer import LossScales, Windows
+from fhnn.models.base import AbstractModel
 
 
 def evaluate(
-    model: AbstractVectorField,
+    model: AbstractModel,
     dataset: Dataset,
     horizons: list[float],
     *,
@@ -31,7 +27,7 @@ def evaluate(
     have left the (r, σ) range of the training data by each horizon.
 
     Args:
-        model: the vector field to roll out.
+        model: the model to roll out (:meth:`~fhnn.models.base.AbstractModel.rollout`).
         dataset: the data set (its ``split`` is rolled out; its training split sets the region).
         horizons: whole seconds.
         split: "train", "val" or "test".
@@ -50,11 +46,7 @@ def evaluate(
     longest = max(horizons)
     if longest > data.t[-1] + 1e-9:
         raise ConfigError(f"horizon {longest:g} s exceeds the {split} trajectories' length {data.t[-1]:g} s")
-    scales = None
-    if hasattr(model, "autoregressive_rollout"):
-        sc = LossScales.of(Windows.of(dataset.train))
-        scales = (jnp.asarray(sc.deriv), jnp.asarray(sc.step))
-    ro = rollout(model, data, until=longest, scales=scales)
+    ro = model.rollout(data, longest)
     truth = data.states_clean[:, : ro.t.size]
     eom = dataset.equations()
     train_cov = coverage(eom, dataset.train)
@@ -62,19 +54,14 @@ def evaluate(
     s_lo, s_hi = train_cov["sigma"]
     pred = np.where(np.isfinite(ro.states), ro.states, np.nan)
     r = np.hypot(pred[..., 0], pred[..., 1])
-    # σ of the predicted states in the true flow
-    sig = np.asarray(
-        jax.vmap(jax.vmap(eom.relative_speed, in_axes=(0, 0)), in_axes=(0, None))(
-            jnp.asarray(np.nan_to_num(pred)), jnp.asarray(ro.t)
-        )
-    )
+    sig = relative_speeds(eom, np.nan_to_num(pred), ro.t)  # σ of the predicted states in the true flow
     outside_at = (r < r_lo) | (r > r_hi) | (sig < s_lo) | (sig > s_hi) | ~np.isfinite(r)
 
     def score(zero: bool) -> dict[str, Any]:
         results: dict[str, Any] = {}
         for h in horizons:
             m = trajectory_metrics(ro.states, truth, ro.t, h, include_zero=zero)
-            upto = np.searchsorted(ro.t, h - 1e-9) + 1
+            upto = samples_until(ro.t, h)
             m["outside_training"] = float(np.mean(np.any(outside_at[:, :upto], axis=1)))
             results[f"{h:g}"] = m
         return results

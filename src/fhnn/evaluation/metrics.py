@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fhnn.data.dataset import samples_until
 from fhnn.errors import ConfigError
-
-METRICS = ("mse_pos", "rmse_pos", "mse_vel", "rmse_vel", "ade", "fde", "within_eps", "diverged", "n_traj")
 
 
 def checkpoint_indices(t: np.ndarray, horizon: float, *, include_zero: bool = False) -> np.ndarray:
@@ -52,7 +51,7 @@ def trajectory_metrics(
             f"pred and truth must both have shape (N, T, 4), got {pred.shape} and {truth.shape}"
         )
     idx = checkpoint_indices(t, horizon, include_zero=include_zero)
-    upto = np.searchsorted(t, horizon - 1e-9) + 1
+    upto = samples_until(t, horizon)
     finite = np.all(np.isfinite(pred[:, :upto]), axis=(1, 2))
     n = pred.shape[0]
     err = pred[finite][:, idx] - truth[finite][:, idx]

@@ -21,6 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from fhnn.data.dataset import Dataset
+from fhnn.data.summary import relative_speeds
 from fhnn.physics.body import COEFFICIENT_NAMES, AbstractCoefficients
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.flows import AbstractFlow
@@ -34,7 +35,7 @@ def visited_r_sigma(eom: EquationsOfMotion, dataset: Dataset, *, max_points: int
     if states.shape[0] > max_points:
         idx = np.random.default_rng(0).choice(states.shape[0], max_points, replace=False)
         states, ts = states[idx], ts[idx]
-    sigma = np.asarray(jax.vmap(eom.relative_speed)(jnp.asarray(states), jnp.asarray(ts)))
+    sigma = relative_speeds(eom, states, ts)
     return np.column_stack([np.hypot(states[:, 0], states[:, 1]), sigma])
 
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fhnn.errors import ConfigError, FhnnError
+from fhnn.runtime import use_compilation_cache
 
 
 @dataclass(frozen=True)
@@ -43,17 +44,6 @@ def _functions() -> dict[str, Callable[..., Any]]:
     from fhnn.experiments.jobs import run_data_job, run_model_job
 
     return {"data": run_data_job, "model": run_model_job}
-
-
-def use_compilation_cache(cache_dir: str | None) -> None:
-    """Point JAX's persistent compilation cache at ``cache_dir`` (every entry kept)."""
-    if not cache_dir:
-        return
-    import jax
-
-    jax.config.update("jax_compilation_cache_dir", cache_dir)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
 
 
 def execute(function: str, cache_dir: str | None, *args: Any) -> Any:
@@ -76,8 +66,7 @@ def _raise_failures(failures: list[tuple[Task, BaseException]]) -> None:
 
 def run_local(tasks: list[Task], on_done: OnDone, *, workers: int, cache_dir: str | None = None) -> None:
     """Run ``tasks`` on ``workers`` local processes (in this process when ``workers == 1``)."""
-    if workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    check_workers(workers)
     failures: list[tuple[Task, BaseException]] = []
     if workers == 1:
         queue = list(tasks)
@@ -161,6 +150,12 @@ def run_ray(tasks: list[Task], on_done: OnDone, *, address: str, cache_dir: str 
             ray.cancel(ref, force=True)
         raise
     _raise_failures(failures)
+
+
+def check_workers(workers: int) -> None:
+    """Raise :class:`ConfigError` unless ``workers`` is at least 1."""
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
 
 
 def default_workers() -> int:

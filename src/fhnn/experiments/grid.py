@@ -21,77 +21,113 @@ Which jobs the tables need (``S`` = seeds):
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 from dataclasses import dataclass, field
 from typing import Any
 
-from fhnn import __version__
 from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
 from fhnn.errors import ConfigError
+from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import PAPER_SCENARIOS, SCENARIOS
-from fhnn.training.run import MODELS
+from fhnn.runtime import __version__
+from fhnn.training.run import RunConfig
+from fhnn.training.trainer import TrainConfig
 
 #: Horizons [s] every model is evaluated at: T1 (1–4, 8, 16), T2 (1, 5), T3 (30, 60, 120), T4/T5 (5).
 HORIZONS = (1, 2, 3, 4, 5, 8, 16, 30, 60, 120)
-ABLATIONS = ("no_added_mass", "no_linear_drag", "no_flow", "shallow", "relu")
-BASELINES = ("node", "hnn", "lnn", "dhn", "dhnn", "sindy")
+#: FHNN's ablations (T5), from the registry.
+ABLATIONS = tuple(MODELS["fhnn"].variants)
 
 
 @frozen_config
-class ReproduceConfig(Config):
-    """What ``fhnn reproduce`` runs.
+class DataSettings(Config):
+    """The simulated data sets of a reproduction.
 
     Attributes:
-        seeds: training seeds per model (each table cell is the mean ± std over them).
-        steps: Adam steps of every gradient-trained model (the same budget for all).
-        lbfgs_steps: L-BFGS polish iterations after Adam (FHNN only; 0 = none).
-        batch_size: transition pairs per Adam step.
-        val_every: steps between validations.
         n_traj: trajectories per data set (``None``: each scenario's default, SPEC §3).
         duration: length of train and val trajectories [s] (``None``: the scenario's default).
         dt: sampling interval [s] (``None``: the scenario's default).
         test_duration: length of test trajectories [s]; at least the longest horizon (120 s).
-        data_seed: seed of every simulated data set.
-        models: models of T1/T2 (``fhnn`` plus baselines of ``node, hnn, lnn, dhn, dhnn, sindy``).
-        ablations: FHNN ablations of T5.
-        main_scenarios: scenarios of T1, T2, T3, T5 and the figures.
-        scenario_table: scenarios of T4.
-        identifiability: add ``steady_vortex`` without actuation to T6.
+        seed: seed of every simulated data set.
     """
 
-    config_name = "reproduce"
+    config_name = "reproduce.data"
 
-    seeds: int = 3
-    steps: int = 1500
-    lbfgs_steps: int = 0
-    batch_size: int = 256
-    val_every: int = 500
     n_traj: int | None = None
     duration: float | None = None
     dt: float | None = None
     test_duration: float = 120.0
-    data_seed: int = 0
-    models: tuple[str, ...] = ("fhnn", *BASELINES)
-    ablations: tuple[str, ...] = ABLATIONS
-    main_scenarios: tuple[str, ...] = ("solid_body_vortex", "steady_vortex")
-    scenario_table: tuple[str, ...] = PAPER_SCENARIOS
-    identifiability: bool = True
+    seed: int = 0
 
     def validate(self) -> None:
-        check_positive(self, "seeds", "steps", "batch_size", "val_every", "test_duration")
-        check_nonnegative(self, "lbfgs_steps", "data_seed")
+        check_positive(self, "test_duration")
+        check_nonnegative(self, "seed")
         if self.n_traj is not None and self.n_traj < 3:
             raise ConfigError(f"reproduce: n_traj must be >= 3 (one per split), got {self.n_traj}")
         for name in ("duration", "dt"):
             value = getattr(self, name)
             if value is not None and value <= 0:
                 raise ConfigError(f"reproduce: {name} must be > 0, got {value}")
-        if self.test_duration < max(HORIZONS):
+
+
+def _model_options() -> type[Config]:
+    """``ModelOptions``: one field per registered model kind, holding that kind's configuration
+    (``model.fhnn.width``, ``model.dhn.block``, …)."""
+    namespace: dict[str, Any] = {
+        "__annotations__": {name: kind.config for name, kind in MODELS.items()},
+        "__doc__": "Per model kind, the configuration its reproduction jobs use.",
+        "__module__": __name__,
+        "config_name": "reproduce.model",
+    }
+    for name, kind in MODELS.items():
+        namespace[name] = dataclasses.field(default_factory=kind.config)
+    return frozen_config(type("ModelOptions", (Config,), namespace))
+
+
+ModelOptions = _model_options()
+
+
+@frozen_config
+class ReproduceConfig(Config):
+    """What ``fhnn reproduce`` runs. Settings are addressed with dotted names (``seeds``,
+    ``data.n_traj``, ``train.steps``, ``model.fhnn.width``).
+
+    Attributes:
+        seeds: training seeds per model, 0 … seeds − 1 (each table cell is the mean ± std over them).
+        models: models of T1/T2 (``fhnn`` plus baselines of the registry).
+        ablations: FHNN ablations of T5.
+        main_scenarios: scenarios of T1, T2, T3, T5 and the figures.
+        scenario_table: scenarios of T4.
+        identifiability: add ``steady_vortex`` without actuation to T6.
+        data: the simulated data sets (:class:`DataSettings`).
+        train: the training of every gradient-trained model — the same budget for all
+            (:class:`~fhnn.training.trainer.TrainConfig`; its seed is set per job).
+        model: each model kind's configuration (``ModelOptions``).
+    """
+
+    config_name = "reproduce"
+
+    seeds: int = 3
+    models: tuple[str, ...] = tuple(MODELS)
+    ablations: tuple[str, ...] = ABLATIONS
+    main_scenarios: tuple[str, ...] = ("solid_body_vortex", "steady_vortex")
+    scenario_table: tuple[str, ...] = PAPER_SCENARIOS
+    identifiability: bool = True
+    data: DataSettings = DataSettings()
+    train: TrainConfig = TrainConfig(steps=1500)
+    model: ModelOptions = dataclasses.field(default_factory=ModelOptions)  # type: ignore[valid-type]
+
+    def validate(self) -> None:
+        check_positive(self, "seeds")
+        if self.data.test_duration < max(HORIZONS):
             raise ConfigError(
                 f"reproduce: test_duration must cover the longest horizon ({max(HORIZONS)} s), "
-                f"got {self.test_duration}"
+                f"got {self.data.test_duration} (data.test_duration)"
             )
+        if self.train.seed != 0:
+            raise ConfigError("reproduce: train.seed is set per job (0 … seeds − 1); set seeds instead")
         _check_names("models", self.models, MODELS)
         _check_names("ablations", self.ablations, ABLATIONS)
         _check_names("main_scenarios", self.main_scenarios, SCENARIOS)
@@ -100,23 +136,22 @@ class ReproduceConfig(Config):
             raise ConfigError("reproduce: nothing to run (models and scenario_table are both empty)")
 
     @classmethod
-    def quick(cls, **overrides: Any) -> ReproduceConfig:
+    def quick(cls, settings: dict[str, Any] | None = None) -> ReproduceConfig:
         """Small data sampled at 0.1 s, 80 steps, one seed, the paper's models only, T1/T2/T3/T5 on
         ``solid_body_vortex`` only and no identifiability contrast: the whole report in a few
         minutes on 2 cores (every table and figure present and well-formed; the numbers are far
-        from converged)."""
-        base = {
-            "seeds": 1,
-            "steps": 80,
-            "val_every": 40,
-            "n_traj": 20,
-            "duration": 3.0,
-            "dt": 0.1,
-            "main_scenarios": ("solid_body_vortex",),
-            "models": ("fhnn", "node", "hnn", "lnn", "dhn"),
-            "identifiability": False,
-        }
-        return cls.from_dict({**base, **overrides})
+        from converged); dotted-name ``settings`` change it further."""
+        base = cls.from_dict(
+            {
+                "seeds": 1,
+                "train": {"steps": 80, "val_every": 40},
+                "data": {"n_traj": 20, "duration": 3.0, "dt": 0.1},
+                "main_scenarios": ("solid_body_vortex",),
+                "models": tuple(name for name, kind in MODELS.items() if kind.in_paper),
+                "identifiability": False,
+            }
+        )
+        return base.with_settings(settings or {})
 
 
 def _check_names(what: str, names: tuple[str, ...], valid: Any) -> None:
@@ -158,13 +193,13 @@ class DataJob:
 
 @dataclass(frozen=True)
 class ModelJob:
-    """Train model ``model`` (FHNN ``ablation``) with ``seed`` on ``data``, then evaluate it."""
+    """Train ``run`` (a model kind, FHNN ``ablation``, with ``seed``) on ``data``, then evaluate it."""
 
     data: DataJob
     model: str
     ablation: str
     seed: int
-    train: dict[str, Any] = field(hash=False)
+    run: RunConfig = field(hash=False)
 
     @property
     def variant(self) -> str:
@@ -177,13 +212,16 @@ class ModelJob:
 
     @property
     def spec(self) -> dict[str, Any]:
+        """Everything that determines the job's result: the data set's specification and the
+        fully resolved run configuration."""
         return {
             "kind": "model",
             "data": self.data.spec,
             "model": self.model,
             "ablation": self.ablation,
             "seed": self.seed,
-            "train": self.train,
+            "model_config": self.run.model.to_dict(),  # type: ignore[union-attr]
+            "train": self.run.train.to_dict(),
             "horizons": list(HORIZONS),
         }
 
@@ -194,12 +232,11 @@ class ModelJob:
 
 def data_job(config: ReproduceConfig, scenario: str, *, actuation: str | None = None) -> DataJob:
     """The data set of ``scenario`` at the reproduction's settings."""
-    settings: dict[str, Any] = {"seed": config.data_seed, "test_duration": config.test_duration}
-    if config.n_traj is not None:
-        settings["n_traj"] = config.n_traj
-    for name in ("duration", "dt"):
-        if getattr(config, name) is not None:
-            settings[name] = getattr(config, name)
+    d = config.data
+    settings: dict[str, Any] = {"seed": d.seed, "test_duration": d.test_duration}
+    for name in ("n_traj", "duration", "dt"):
+        if getattr(d, name) is not None:
+            settings[name] = getattr(d, name)
     if actuation is not None:
         settings["actuation"] = actuation
     return DataJob(scenario, settings)
@@ -207,16 +244,17 @@ def data_job(config: ReproduceConfig, scenario: str, *, actuation: str | None = 
 
 def build_grid(config: ReproduceConfig) -> tuple[list[DataJob], list[ModelJob]]:
     """Every data set and every (data set × model × seed) job the tables need, without repeats."""
-    train = {"steps": config.steps, "batch_size": config.batch_size, "val_every": config.val_every}
-    polish = {"lbfgs_steps": config.lbfgs_steps} if config.lbfgs_steps else {}
     datasets: dict[str, DataJob] = {}
     jobs: dict[str, ModelJob] = {}
 
     def add(d: DataJob, model: str, ablation: str = "none") -> None:
         datasets.setdefault(d.id, d)
+        model_config = getattr(config.model, model)
+        if ablation != "none":
+            model_config = model_config.replace(ablation=ablation)
         for seed in range(config.seeds):
-            extra = polish if model == "fhnn" else {}
-            job = ModelJob(d, model, ablation, seed, {**train, **extra, "seed": seed})
+            run = RunConfig(kind=model, model=model_config, train=config.train.replace(seed=seed))
+            job = ModelJob(d, model, ablation, seed, run)
             jobs.setdefault(job.id, job)
 
     for sc in config.main_scenarios:

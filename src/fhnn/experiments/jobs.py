@@ -1,16 +1,18 @@
 """Running one job of the reproduction grid, wherever it runs (a local process or a Ray worker).
 
-A job works in a private temporary folder and returns its output as ``{relative path: bytes}``;
-the driver writes those files into the reproduction folder. Nothing therefore assumes a file
-system shared between the driver and the machine that ran the job, and a job that dies leaves
-nothing behind.
+A local worker shares the driver's file system: it reads a data set from its path in the
+reproduction folder and writes a simulated one there (atomically). A Ray worker may not: it
+receives a data set as bytes and returns one as bytes. Either way a model job trains in a private
+temporary folder and returns its output as ``{relative path: bytes}``, which the driver writes into
+the reproduction folder, so a job that dies leaves nothing behind.
 
 Model-job output::
 
     result.json     specification, timings, metrics at every horizon (SPEC averaging under
                     "spec", the paper's under "paper"), per-trajectory divergence, recovery (FHNN)
     rollouts.npz    t (T,), pred (K, T, 4): the first K ≤ 4 test rollouts up to 30 s
-    run/            the run folder (fhnn.training.run.Run): configuration, weights, history
+    run/            the run folder (fhnn.training.run.Run): configuration, weights, history; its
+                    data set is recorded as ../../../data/<name>, where the driver keeps it
 """
 
 from __future__ import annotations
@@ -24,41 +26,48 @@ from typing import Any
 
 import numpy as np
 
-from fhnn import __version__
 from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.physics.scenarios import get_scenario
-from fhnn.training.run import MODELS, Run
-from fhnn.training.trainer import TrainConfig
+from fhnn.runtime import __version__
+from fhnn.training.run import Run, RunConfig
 
 #: Rollouts kept for the figures: this many test trajectories, up to this time [s].
 FIGURE_ROLLOUTS, FIGURE_SECONDS = 4, 30.0
 
 
-def run_data_job(spec: dict[str, Any]) -> bytes:
-    """Simulate the data set of a data job's ``spec``; returns the HDF5 file's bytes."""
+def run_data_job(spec: dict[str, Any], target: str | None = None) -> bytes | str:
+    """Simulate the data set of a data job's ``spec``: written to ``target`` (a path the driver
+    can read) and that path returned, or, without ``target``, returned as HDF5 bytes."""
     scenario = get_scenario(spec["scenario"])
     config = SimulationConfig.for_scenario(scenario, **spec["settings"])
     dataset = simulate_dataset(scenario, config)
+    if target is not None:
+        write_dataset(dataset, target)
+        return target
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "data.h5"
         write_dataset(dataset, path)
         return path.read_bytes()
 
 
-def run_model_job(spec: dict[str, Any], data: bytes, data_name: str) -> dict[str, bytes]:
-    """Train and evaluate the model of a model job's ``spec`` on the data set ``data`` (HDF5
-    bytes, stored by the driver as ``data/<data_name>``); returns the job's files."""
+def run_model_job(spec: dict[str, Any], data: bytes | str, data_name: str) -> dict[str, bytes]:
+    """Train and evaluate the model of a model job's ``spec`` on the data set ``data`` — a path
+    (local workers) or HDF5 bytes (Ray workers) — kept by the driver as ``data/<data_name>``;
+    returns the job's files."""
     kind, ablation = spec["model"], spec["ablation"]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        (folder / "data.h5").write_bytes(data)
-        dataset = read_dataset(folder / "data.h5")
-        model_config = MODELS[kind].from_dict({"ablation": ablation} if ablation != "none" else {})
-        train_config = TrainConfig.from_dict(spec["train"])
-        run = Run.create(folder / "run", dataset, f"data/{data_name}", kind, model_config, train_config)
+        path = Path(data) if isinstance(data, str) else folder / "data.h5"
+        if isinstance(data, bytes):
+            path.write_bytes(data)
+        dataset = read_dataset(path)
+        config = RunConfig.from_dict({"kind": kind, "model": spec["model_config"], "train": spec["train"]})
+        run = Run.create(
+            folder / "run", dataset, config, data_path=path, data_ref=f"../../../data/{data_name}"
+        )
         t0 = time.perf_counter()
         run.train(dataset)
         train_seconds = time.perf_counter() - t0

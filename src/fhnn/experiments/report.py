@@ -22,8 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from fhnn import __version__
-from fhnn.data.dataset import read_dataset, write_atomic
+from fhnn.data.dataset import read_dataset
 from fhnn.experiments import figures
 from fhnn.experiments.grid import ABLATIONS, HORIZONS, ModelJob, ReproduceConfig
 from fhnn.experiments.tables import (
@@ -37,7 +36,10 @@ from fhnn.experiments.tables import (
     to_json,
     to_markdown,
 )
+from fhnn.files import write_atomic
+from fhnn.runtime import __version__
 from fhnn.training.run import Run
+from fhnn.training.trainer import TrainConfig
 
 PACKAGES = ("jax", "jaxlib", "equinox", "diffrax", "optax", "numpy", "scipy", "h5py", "pysindy", "matplotlib")
 
@@ -179,11 +181,19 @@ def _intro(config: ReproduceConfig, timings: dict[str, Any]) -> str:
     return (
         f"fhnn {__version__}: the paper's tables (SPEC §6) on our data sets, "
         f"{config.seeds} seed(s) per model, "
-        f"{config.steps} Adam steps per gradient-trained model"
-        + (f" + {config.lbfgs_steps} L-BFGS (FHNN)" if config.lbfgs_steps else "")
+        f"the same training for every gradient-trained model ({_plan_text(config.train)})"
         + f". {timings['jobs']} training jobs, {timings['job_seconds_total'] / 60:.1f} CPU-minutes of jobs; "
         f"this invocation took {timings['wall_seconds_this_run'] / 60:.1f} min (cached jobs are not re-run)."
     )
+
+
+def _plan_text(train: TrainConfig) -> str:
+    phases = [
+        f"{train.warmup_steps} L-BFGS warm-up" if train.warmup_steps else "",
+        f"{train.steps} Adam steps" if train.steps else "",
+        f"{train.lbfgs_steps} L-BFGS polish" if train.lbfgs_steps else "",
+    ]
+    return " + ".join(p for p in phases if p) or "no training steps"
 
 
 def _markdown(

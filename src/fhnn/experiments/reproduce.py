@@ -17,19 +17,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from fhnn import __version__
-from fhnn.data.dataset import write_atomic
 from fhnn.errors import ConfigError
-from fhnn.experiments.executors import Task, default_workers, run_local, run_ray
+from fhnn.experiments.executors import Task, check_workers, default_workers, run_local, run_ray
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
 from fhnn.experiments.report import build_report
+from fhnn.files import write_atomic, write_folder_atomic
+from fhnn.runtime import __version__
 
 FORMAT = "fhnn-reproduction"
 #: ``progress(phase, done, total, last)``: phase "jobs" (data sets and training jobs still to do)
@@ -60,17 +58,6 @@ def check_output_folder(out: Path) -> None:
         raise ConfigError(f"output folder '{out}' is not empty and holds no reproduction (no reproduce.json)")
 
 
-def _store_job(folder: Path, files: dict[str, bytes]) -> None:
-    tmp = folder.with_name(f".{folder.name}.tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    for rel, data in files.items():
-        target = tmp / rel
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_bytes(data)
-    shutil.rmtree(folder, ignore_errors=True)
-    os.replace(tmp, folder)
-
-
 def reproduce(
     config: ReproduceConfig,
     out: Path,
@@ -84,8 +71,7 @@ def reproduce(
     out = Path(out)
     check_output_folder(out)
     workers = default_workers() if workers is None else workers
-    if workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    check_workers(workers)
     datasets, jobs = build_grid(config)
     for sub in ("data", "jobs", "cache"):
         (out / sub).mkdir(parents=True, exist_ok=True)
@@ -110,28 +96,39 @@ def reproduce(
     total = len(todo) + len(todo_jobs)
     done = 0
     report("jobs", done, total, f"{len(datasets) - len(todo) + len(jobs) - len(todo_jobs)} cached")
+    # local workers read and write the data sets in place; Ray workers get and return bytes
     data_bytes: dict[str, bytes] = {}
+
+    def data_arg(d: DataJob) -> bytes | str:
+        path = out / "data" / d.filename
+        if not ray_address:
+            return str(path.resolve())
+        if d.id not in data_bytes:
+            data_bytes[d.id] = path.read_bytes()
+        return data_bytes[d.id]
 
     def model_tasks(d: DataJob) -> list[Task]:
         waiting = [j for j in todo_jobs if j.data.id == d.id]
-        if waiting and d.id not in data_bytes:
-            data_bytes[d.id] = (out / "data" / d.filename).read_bytes()
-        return [Task(j.id, "model", (j.spec, data_bytes[d.id], d.filename)) for j in waiting]
+        return [Task(j.id, "model", (j.spec, data_arg(d), d.filename)) for j in waiting] if waiting else []
 
     def on_done(task: Task, output: object) -> list[Task]:
         nonlocal done
         done += 1
         if task.function == "data":
-            assert isinstance(output, bytes)
-            write_atomic(out / "data" / by_id[task.name].filename, output)
+            if isinstance(output, bytes):
+                write_atomic(out / "data" / by_id[task.name].filename, output)
             report("jobs", done, total, by_id[task.name].label)
             return model_tasks(by_id[task.name])
         assert isinstance(output, dict)
-        _store_job(out / "jobs" / task.name, output)
+        write_folder_atomic(out / "jobs" / task.name, output)
         report("jobs", done, total, jobs_by_id[task.name].label)
         return []
 
-    first = [Task(d.id, "data", (d.spec,)) for d in todo]
+    def data_task(d: DataJob) -> Task:
+        target = None if ray_address else str((out / "data" / d.filename).resolve())
+        return Task(d.id, "data", (d.spec, target))
+
+    first = [data_task(d) for d in todo]
     for d in datasets:
         if d not in todo:
             first += model_tasks(d)

@@ -24,6 +24,7 @@ import numpy as np
 
 from fhnn.experiments.grid import ABLATIONS, ModelJob
 from fhnn.experiments.paper import paper_value
+from fhnn.models.registry import MODELS
 
 #: (key, caption, metrics, horizons) of the trajectory tables.
 TRAJECTORY_TABLES: tuple[tuple[str, str, tuple[str, ...], tuple[int, ...]], ...] = (
@@ -52,20 +53,8 @@ METRIC_NAMES = {
     "c_l": "c_l",
     "flow": "flow (rel. L2)",
 }
-MODEL_NAMES = {
-    "fhnn": "FHNN",
-    "node": "Neural ODE",
-    "hnn": "HNN",
-    "lnn": "LNN",
-    "dhn": "DHN",
-    "dhnn": "dissipative HNN",
-    "sindy": "SINDy",
-    "no_added_mass": "no added mass",
-    "no_linear_drag": "no linear drag",
-    "no_flow": "no flow field",
-    "shallow": "shallow net",
-    "relu": "ReLU",
-}
+#: Table label of every model kind and FHNN variant (from the registry).
+MODEL_NAMES = MODELS.labels()
 
 
 @dataclass(frozen=True)
@@ -172,7 +161,7 @@ def build_tables(
         for data in main:
             models = {
                 "T1": ("fhnn", "node"),
-                "T2": tuple(v for v in variants if v in MODEL_NAMES and v not in ABLATIONS and v != "node"),
+                "T2": tuple(v for v in variants if v in MODELS and v != "node"),
                 "T3": ("fhnn",),
                 "T5": ("fhnn", *(v for v in variants if v in ABLATIONS)),
             }[key]

@@ -1,26 +1,97 @@
-"""The one interface every model implements: a vector field ``ṡ = f(s, t, F_ext)``.
+"""The interface every model implements: a training objective and a rollout.
 
-A model is an Equinox module; ``model(state, t, force)`` takes one state ``(4,)`` [m, m, m/s, m/s],
-a time ``t`` [s] and the known external force ``(2,)`` [N], and returns ``ṡ`` ``(4,)``. Batching is
-``jax.vmap``. Training, rollout and metrics only ever see this interface.
+:class:`AbstractModel` is what training and evaluation see:
+
+- :meth:`AbstractModel.loss_terms` — the unweighted training loss terms on a batch of windows;
+- :meth:`AbstractModel.rollout` — predicted states of a split's trajectories from their first
+  state (and forcing), as a :class:`Rollout`.
+
+Two kinds implement it. :class:`AbstractVectorField` — FHNN and every continuous baseline — is a
+vector field ``ṡ = f(s, t, F_ext)``: ``model(state, t, force)`` takes one state ``(4,)`` [m, m,
+m/s, m/s], a time ``t`` [s] and the known external force ``(2,)`` [N] and returns ``ṡ`` ``(4,)``
+(batching is ``jax.vmap``); its loss is the derivative and one-step RK4 error and its rollout an
+adaptive high-accuracy solve. Discrete models (DHN) subclass :class:`AbstractModel` directly and
+roll themselves out step by step.
 """
 
 from __future__ import annotations
 
 import abc
+from dataclasses import dataclass
 from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from fhnn.data.dataset import Split, samples_until
 from fhnn.physics.actuation import actuation_force
-from fhnn.physics.integrators import rk4_step
+from fhnn.physics.integrators import rk4_step, solve_forced_batch
 
 Array = jax.Array
 
+#: Default rollout tolerance; its real error is checked by a test against a 1000× tighter solve.
+ROLLOUT_TOL = 1e-10
+#: A rollout whose state exceeds this multiple of the largest initial-state component (at least
+#: 1) has blown up; it stops there and is reported as diverged.
+BLOW_UP = 1e3
+#: Step budget per sample interval: a rollout needing more (a stiff, e.g. LNN, model) counts as a
+#: solver failure and is reported as diverged. Well-posed models take about one step per interval.
+STEPS_PER_SAMPLE = 20
 
-class AbstractVectorField(eqx.Module):
+
+@dataclass(frozen=True)
+class Rollout:
+    """Predicted states ``(N, T, 4)`` at times ``t`` ``(T,)``; ``ok`` ``(N,)`` false where diverged."""
+
+    t: np.ndarray
+    states: np.ndarray
+    ok: np.ndarray
+
+
+class AbstractModel(eqx.Module):
+    """A trainable model of a floating body's dynamics (see the module docstring)."""
+
+    @abc.abstractmethod
+    def loss_terms(self, batch: dict[str, Array], scales: tuple[Array, Array]) -> dict[str, Array]:
+        """Unweighted training loss terms on a batch of windows (SPEC §5).
+
+        ``batch``: ``s`` ``(B, W, 4)`` consecutive observed states at times ``t`` ``(B, W)``, their
+        true derivatives ``deriv`` ``(B, W, 4)``, forces ``forces`` ``(B, W, 2)`` [N], forcing
+        parameters ``act`` ``(B, 2, 3, 3)``, trajectory index ``traj`` ``(B,)`` and a PRNG ``key``.
+        ``scales``: per-component std of derivatives and of one-step increments ``(4,)`` each.
+        Terms named in the trainer's ``REGULARIZERS`` are weighted by the annealed ``λ_flow``.
+        """
+
+    @abc.abstractmethod
+    def rollout(
+        self,
+        split: Split,
+        until: float | None = None,
+        *,
+        rtol: float = ROLLOUT_TOL,
+        atol: float = ROLLOUT_TOL,
+        from_clean: bool = True,
+    ) -> Rollout:
+        """Predict every trajectory of ``split`` from its start up to ``until`` [s] (default: the
+        trajectories' end) with the trajectory's own forcing. ``rtol``, ``atol``: tolerances of an
+        adaptive solver (ignored by discrete models); ``from_clean``: start from the clean states
+        (SPEC §5) rather than the observed ones."""
+
+    def warmup_filter(self) -> Any:
+        """Which parameters train during the trainer's warm-up phase: a pytree of bools shaped like
+        the model (``True``: trains from the first step), or ``None`` (default): every parameter
+        trains from the start and there is no warm-up."""
+        return None
+
+    @property
+    def window(self) -> int:
+        """Consecutive samples per training example (2: a transition pair)."""
+        return 2
+
+
+class AbstractVectorField(AbstractModel):
     """A learned (or known) vector field ``ṡ = f(s, t, F_ext)``."""
 
     @abc.abstractmethod
@@ -32,15 +103,8 @@ class AbstractVectorField(eqx.Module):
         return {}
 
     def loss_terms(self, batch: dict[str, Array], scales: tuple[Array, Array]) -> dict[str, Array]:
-        """Unweighted training loss terms on a batch of windows (SPEC §5).
-
-        ``batch``: ``s`` ``(B, W, 4)`` consecutive observed states at times ``t`` ``(B, W)``, their
-        true derivatives ``deriv`` ``(B, W, 4)``, forcing ``act`` ``(B, 2, 3, 3)`` and trajectory
-        index ``traj`` ``(B,)``. ``scales``: per-component std of derivatives and of one-step
-        increments. The default — for every model that is a vector field — is ``{"deriv": MSE of
-        f(s_0) against the true derivative, "step": MSE of one RK4 step against s_1}`` (both
-        normalised by ``scales``) plus :meth:`regularization`.
-        """
+        """``{"deriv": MSE of f(s_0) against the true derivative, "step": MSE of one RK4 step
+        against s_1}`` (both normalised by ``scales``) plus :meth:`regularization`."""
         deriv_scale, step_scale = scales
 
         def one(s: Array, t: Array, a: Array) -> tuple[Array, Array]:
@@ -55,13 +119,25 @@ class AbstractVectorField(eqx.Module):
         terms.update(self.regularization(batch["s"][:, 0], batch["t"][:, 0]))
         return terms
 
-    def warmup_filter(self) -> Any:
-        """Which parameters train during the trainer's warm-up phase: a pytree of bools shaped like
-        the model (``True``: trains from the first step), or ``None`` (default): every parameter
-        trains from the start and there is no warm-up."""
-        return None
-
-    @property
-    def window(self) -> int:
-        """Consecutive samples per training example (2: a transition pair)."""
-        return 2
+    def rollout(
+        self,
+        split: Split,
+        until: float | None = None,
+        *,
+        rtol: float = ROLLOUT_TOL,
+        atol: float = ROLLOUT_TOL,
+        from_clean: bool = True,
+    ) -> Rollout:
+        """Adaptive Dopri8 whose steps land on every sample time (no interpolation error). A
+        non-finite state, a state beyond :data:`BLOW_UP` times the initial scale, or running out of
+        :data:`STEPS_PER_SAMPLE` steps per interval marks the trajectory as diverged."""
+        t = split.t if until is None else split.t[: samples_until(split.t, until)]
+        y0 = (split.states_clean if from_clean else split.states)[:, 0]
+        max_steps = STEPS_PER_SAMPLE * (t.size - 1) + 1000
+        bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(y0)))))
+        ys, ok = solve_forced_batch(
+            self, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol, max_steps, bound
+        )
+        ys = np.asarray(ys)
+        ok = np.asarray(ok) & np.all(np.isfinite(ys), axis=(1, 2))
+        return Rollout(t=np.asarray(t), states=ys, ok=ok)

@@ -25,6 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from fhnn.config import Config, check_positive, frozen_config
+from fhnn.data.dataset import Dataset
+from fhnn.data.windows import LossScales, Windows
 from fhnn.models.base import AbstractVectorField
 
 Array = jax.Array
@@ -137,6 +139,25 @@ class LNN(AbstractVectorField):
         mixed = jax.jacfwd(jax.grad(self.lagrangian, argnums=1), argnums=0)(q, qd)  # ∂²L/∂q̇∂q
         qdd = jnp.linalg.solve(hess_qd, grad_q - mixed @ qd + force)
         return jnp.concatenate([qd, qdd])
+
+
+def data_statistics(dataset: Dataset) -> dict:
+    """The training split's statistics a baseline standardises with: ``n_traj``; per component
+    ``state_mean``, ``state_std``, ``deriv_std`` and ``step_std`` (one-step increments, the
+    trainer's step scale); ``force_std`` [N] (at least 1e-3) and ``energy`` (mean squared velocity
+    std, the scale of ``H`` and ``L``)."""
+    train = dataset.train
+    states = train.states.reshape(-1, 4)
+    std = states.std(axis=0)
+    return {
+        "n_traj": train.n_traj,
+        "step_std": LossScales.of(Windows.of(train)).step.tolist(),
+        "state_mean": states.mean(axis=0).tolist(),
+        "state_std": std.tolist(),
+        "force_std": float(max(train.forces.std(), 1e-3)),
+        "deriv_std": train.derivs.reshape(-1, 4).std(axis=0).tolist(),
+        "energy": float(np.mean(std[2:] ** 2)),
+    }
 
 
 def build_baseline(kind: str, config: MLPConfig, stats: dict, key: Array) -> AbstractVectorField:

@@ -31,8 +31,8 @@ import numpy as np
 import optax
 
 from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
-from fhnn.data.dataset import Split
-from fhnn.models.base import AbstractVectorField
+from fhnn.data.dataset import Split, samples_until
+from fhnn.models.base import ROLLOUT_TOL, AbstractModel, Rollout
 
 Array = jax.Array
 
@@ -66,7 +66,7 @@ class DHNConfig(Config):
         check_nonnegative(self, "w_denoise", "code_decay")
 
 
-class DHN(AbstractVectorField):
+class DHN(AbstractModel):
     """Discrete, block-wise Hamiltonian model; not a continuous vector field (see module doc)."""
 
     h_plus: eqx.nn.MLP
@@ -75,6 +75,7 @@ class DHN(AbstractVectorField):
     scale_q: tuple[float, float] = eqx.field(static=True)
     scale_p: tuple[float, float] = eqx.field(static=True)
     scale_f: float = eqx.field(static=True)
+    step_scale: tuple[float, float, float, float] = eqx.field(static=True)
     energy: float = eqx.field(static=True)
     block: int = eqx.field(static=True)
     w_denoise: float = eqx.field(static=True)
@@ -85,9 +86,6 @@ class DHN(AbstractVectorField):
     @property
     def window(self) -> int:
         return self.block + 1
-
-    def __call__(self, state: Array, t: Array, force: Array) -> Array:
-        raise TypeError("DHN is a discrete block model: roll it out with autoregressive_rollout")
 
     # -- the two discrete Hamiltonians -------------------------------------------------------------
     def _h(self, mlp: eqx.nn.MLP, a: Array, b: Array, ma: Array, mb: Array, f: Array, z: Array) -> Array:
@@ -186,14 +184,24 @@ class DHN(AbstractVectorField):
         _, rest = jax.lax.scan(step, prefix[1:], ks)
         return jnp.concatenate([prefix, rest])[:T]
 
-    def autoregressive_rollout(self, split: Split, until: float | None, scales: tuple[Array, Array]):
-        """Predicted states ``(N, T, 4)`` and ``ok`` ``(N,)`` for every trajectory of ``split``."""
-        t = split.t if until is None else split.t[: np.searchsorted(split.t, until - 1e-9) + 1]
+    def rollout(
+        self,
+        split: Split,
+        until: float | None = None,
+        *,
+        rtol: float = ROLLOUT_TOL,
+        atol: float = ROLLOUT_TOL,
+        from_clean: bool = True,
+    ) -> Rollout:
+        """Autoregressive rollout of every trajectory of ``split`` (``rtol``/``atol`` unused): each
+        trajectory's code is fitted to its first ``S + 1`` states, then one block step at a time."""
+        t = split.t if until is None else split.t[: samples_until(split.t, until)]
         T = t.size
         S = self.block
-        states = jnp.asarray(split.states_clean[:, : S + 1])
+        source = split.states_clean if from_clean else split.states
+        states = jnp.asarray(source[:, : S + 1])
         forces = jnp.asarray(split.forces[:, : max(T, S + 1)])
-        _, step_scale = scales
+        step_scale = jnp.asarray(self.step_scale)
 
         @eqx.filter_jit
         def one(model: DHN, prefix: Array, f: Array) -> Array:
@@ -202,12 +210,13 @@ class DHN(AbstractVectorField):
 
         out = np.stack([np.asarray(one(self, states[i], forces[i])) for i in range(split.n_traj)])[:, :T]
         ok = np.all(np.isfinite(out), axis=(1, 2))
-        return t, out, ok
+        return Rollout(t=np.asarray(t), states=out, ok=ok)
 
 
 def build_dhn(config: DHNConfig, stats: dict, n_traj: int, key: Array) -> DHN:
-    """A fresh DHN with ``n_traj`` training codes; ``stats`` as for the other baselines, plus
-    ``step_std`` (per-component std of one-step increments)."""
+    """A fresh DHN with ``n_traj`` training codes; ``stats`` as for the other baselines
+    (:func:`~fhnn.models.baselines.data_statistics`), including ``step_std``, the per-component std
+    of one-step increments that scales a new trajectory's code fit."""
     S = config.block
     n_in = 4 * 2 * S + 2 * (S + 1) + config.latent
     k1, k2, k3 = jax.random.split(key, 3)
@@ -221,6 +230,7 @@ def build_dhn(config: DHNConfig, stats: dict, n_traj: int, key: Array) -> DHN:
         scale_q=(std[0], std[1]),
         scale_p=(std[2], std[3]),
         scale_f=stats["force_std"],
+        step_scale=tuple(float(x) for x in step),
         energy=float(np.mean(step[:2]) * np.mean(std[2:])),
         block=S,
         w_denoise=config.w_denoise,

@@ -52,6 +52,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from fhnn.config import Config, check_positive, frozen_config
+from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError
 from fhnn.models.base import AbstractVectorField
 from fhnn.physics.body import AbstractCoefficients
@@ -60,7 +61,16 @@ from fhnn.physics.flows import AbstractFlow, StillWater
 
 Array = jax.Array
 
-ABLATIONS = ("none", "no_added_mass", "no_linear_drag", "no_flow", "shallow", "relu")
+#: The paper's ablations (its Table "ablation"): name → label.
+ABLATIONS = {
+    "no_added_mass": "no added mass",
+    "no_linear_drag": "no linear drag",
+    "no_flow": "no flow field",
+    "shallow": "shallow net",
+    "relu": "ReLU",
+}
+#: ``FHNNConfig.ablation``: "none" (the full model) or one of :data:`ABLATIONS`.
+AblationName = Literal[("none", *ABLATIONS)]  # type: ignore[valid-type]
 CAPS = (60.0, 60.0, 2.0, 10.0)
 
 
@@ -92,7 +102,7 @@ class FHNNConfig(Config):
     activation: Literal["tanh", "relu"] = "tanh"
     cap_map: Literal["tanh", "sigmoid"] = "tanh"
     caps: tuple[float, float, float, float] = CAPS
-    ablation: Literal["none", "no_added_mass", "no_linear_drag", "no_flow", "shallow", "relu"] = "none"
+    ablation: AblationName = "none"
     time_dependent: bool | None = None
     fluid_inertia: bool | None = None
     init_coefficients: tuple[float, float, float, float] = (10.0, 10.0, 0.5, 2.0)
@@ -228,6 +238,28 @@ class FHNN(AbstractVectorField):
             return {"flow": jnp.zeros(())}
         hess = jax.vmap(jax.jacrev(jax.grad(self.flow.net_stream)))(states[:, :2], ts)
         return {"flow": jnp.mean(jnp.sum(hess**2, axis=(1, 2)))}
+
+
+def fhnn_arguments(dataset: Dataset) -> dict[str, Any]:
+    """Data-derived arguments of :func:`build_fhnn`: the known body constants, whether the flow
+    depends on time and has fluid inertia, and the input scales and radius range of the training
+    split."""
+    train = dataset.train
+    body = dataset.body()
+    pos = train.states[..., :2]
+    radius = np.hypot(pos[..., 0], pos[..., 1])
+    return {
+        "mass": body.mass,
+        "rho": body.rho,
+        "area": body.area,
+        "volume": body.volume,
+        "time_dependent": bool(dataset.scenario_object().time_dependent),
+        "fluid_inertia": bool(body.fluid_inertia),
+        "length_scale": float(np.sqrt(np.mean(np.sum(pos**2, axis=-1)))),
+        "speed_scale": float(np.sqrt(np.mean(train.states[..., 2:] ** 2))),
+        "time_scale": float(train.t[-1]),
+        "r_range": [float(radius.min()), float(radius.max())],
+    }
 
 
 def build_fhnn(

@@ -10,6 +10,7 @@
   1e-12 → 6e-11 (default); clipped steps at 1e-10 → 7e-12.
 
 ``f`` is any callable ``f(s, t) -> ṡ`` on one state; batch with :func:`jax.vmap`.
+:func:`solve_forced_batch` integrates many forced trajectories at once (simulation and rollouts).
 """
 
 from __future__ import annotations
@@ -17,8 +18,11 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
+
+from fhnn.physics.actuation import actuation_force
 
 Array = jax.Array
 VectorField = Callable[[Array, Array], Array]
@@ -94,3 +98,44 @@ def adaptive_solve(
     ys = sol.ys
     ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
     return ys, ok
+
+
+@eqx.filter_jit
+def solve_forced_batch(
+    field: Callable[[Array, Array, Array], Array],
+    y0: Array,
+    actuation: Array,
+    ts: Array,
+    rtol: float,
+    atol: float,
+    max_steps: int = 200_000,
+    bound: Array | None = None,
+) -> tuple[Array, Array]:
+    """Many trajectories of a forced system ``ṡ = field(s, t, F(t))``, stepping onto every time.
+
+    Args:
+        field: an Equinox module (the true equations of motion, or a model) called as
+            ``field(state (4,), t, force (2,))``.
+        y0: initial states, shape ``(N, 4)``.
+        actuation: each trajectory's forcing parameters, shape ``(N, 2, 3, 3)``
+            (:func:`~fhnn.physics.actuation.actuation_force`).
+        ts: output times [s], shape ``(T,)``.
+        rtol, atol, max_steps, bound: as for :func:`adaptive_solve` (``dense=False``).
+
+    Returns:
+        ``(states, ok)`` of shapes ``(N, T, 4)`` and ``(N,)``.
+    """
+
+    def one(s0: Array, a: Array) -> tuple[Array, Array]:
+        return adaptive_solve(
+            lambda s, t: field(s, t, actuation_force(a, t)),
+            s0,
+            ts,
+            rtol=rtol,
+            atol=atol,
+            dense=False,
+            max_steps=max_steps,
+            bound=bound,
+        )
+
+    return jax.vmap(one)(y0, actuation)

@@ -1,100 +1,110 @@
-"""A training run on disk: build a model for a data set, train it, checkpoint, resume, load.
+"""A training run on disk: its configuration, building a model for a data set, training it,
+checkpointing, resuming and loading.
 
 Run folder layout::
 
     RUN/run.json        format "fhnn-run", package version, model kind and configuration,
-                        training configuration, data set path and scenario, the data-derived
-                        build arguments, step reached, best validation loss, loss history
+                        training configuration, the data set (path relative to RUN, SHA-256,
+                        scenario, seed), the data-derived build arguments, step reached, best
+                        validation loss, loss history
     RUN/model.eqx       weights at the step reached        (equinox.tree_serialise_leaves)
     RUN/best.eqx        weights with the best validation loss
     RUN/opt_state.eqx   optimiser state, for resuming
 
 Everything is written to temporary files and renamed, so a killed run leaves the previous
 checkpoint intact; resuming continues from ``step`` with the same batches, giving the same result
-as an uninterrupted run.
+as an uninterrupted run. The data set is recorded relative to the run folder, so a run and its data
+moved together (a reproduction folder) still find each other, from any working directory.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import equinox as eqx
-import jax
 import numpy as np
 
-from fhnn import __version__
-from fhnn.config import Config
-from fhnn.data.dataset import Dataset, atomic_output, write_atomic
+from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
+from fhnn.data.dataset import Dataset, read_dataset
 from fhnn.errors import ConfigError, DataFormatError
-from fhnn.models.base import AbstractVectorField
-from fhnn.models.baselines import MLPConfig, build_baseline
-from fhnn.models.dhn import DHNConfig, build_dhn
-from fhnn.models.fhnn import FHNNConfig, build_fhnn
-from fhnn.models.sindy import SINDyConfig, empty_sindy, fit_sindy
+from fhnn.files import atomic_output, write_atomic
+from fhnn.models.base import AbstractModel
+from fhnn.models.registry import MODELS
+from fhnn.runtime import __version__
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
 RUN_FORMAT = "fhnn-run"
-#: Model kinds trainable by gradient descent, with their configuration classes.
-MODELS: dict[str, type[Config]] = {
-    "fhnn": FHNNConfig,
-    "node": MLPConfig,
-    "hnn": MLPConfig,
-    "lnn": MLPConfig,
-    "dhnn": MLPConfig,
-    "sindy": SINDyConfig,
-    "dhn": DHNConfig,
-}
 
 
-def build_arguments(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
-    """Data-derived arguments of a model's builder: for FHNN the body constants and input
-    scales, for the baselines the training data's statistics."""
-    train = dataset.train
-    if kind != "fhnn":
-        states = train.states.reshape(-1, 4)
-        std = states.std(axis=0)
-        return {
-            "n_traj": train.n_traj,
-            "step_std": np.diff(train.states, axis=1).reshape(-1, 4).std(axis=0).tolist(),
-            "state_mean": states.mean(axis=0).tolist(),
-            "state_std": std.tolist(),
-            "force_std": float(max(train.forces.std(), 1e-3)),
-            "deriv_std": train.derivs.reshape(-1, 4).std(axis=0).tolist(),
-            "energy": float(np.mean(std[2:] ** 2)),
-        }
-    body = dataset.body()
-    pos = train.states[..., :2]
-    radius = np.hypot(pos[..., 0], pos[..., 1])
-    return {
-        "mass": body.mass,
-        "rho": body.rho,
-        "area": body.area,
-        "volume": body.volume,
-        "time_dependent": bool(dataset.scenario_object().time_dependent),
-        "fluid_inertia": bool(body.fluid_inertia),
-        "length_scale": float(np.sqrt(np.mean(np.sum(pos**2, axis=-1)))),
-        "speed_scale": float(np.sqrt(np.mean(train.states[..., 2:] ** 2))),
-        "time_scale": float(train.t[-1]),
-        "r_range": [float(radius.min()), float(radius.max())],
-    }
+@frozen_config
+class RunConfig(Config):
+    """Everything that decides a training run, besides its data: the model kind, the kind's
+    configuration and the training configuration. Settings are addressed with dotted names —
+    ``kind``, ``model.<field>`` (see the kind's configuration class) and ``train.<field>``
+    (:class:`~fhnn.training.trainer.TrainConfig`).
+
+    Attributes:
+        kind: a model kind of :data:`~fhnn.models.registry.MODELS`.
+        model: the kind's configuration (``None``: its defaults).
+        train: the training configuration.
+    """
+
+    config_name = "run"
+
+    kind: str = "fhnn"
+    model: Config | None = None
+    train: TrainConfig = TrainConfig()
+
+    def __post_init__(self) -> None:
+        kind = MODELS[self.kind]
+        if self.model is None:
+            object.__setattr__(self, "model", kind.default_config())
+        super().__post_init__()
+
+    def validate(self) -> None:
+        expected = MODELS[self.kind].config
+        if type(self.model) is not expected:
+            raise ConfigError(
+                f"run: model configuration for {self.kind!r} must be a {expected.__name__}, "
+                f"got {type(self.model).__name__}"
+            )
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> RunConfig:
+        unknown = [k for k in values if k not in cls.field_names()]
+        if unknown:
+            check_setting_names(cls(), unknown)
+        kind = str(values.get("kind", "fhnn"))
+        model = values.get("model") or {}
+        if not isinstance(model, Config):
+            model = MODELS[kind].config.from_dict(model)
+        train = values.get("train") or {}
+        if not isinstance(train, TrainConfig):
+            train = TrainConfig.from_dict(train)
+        return cls(kind=kind, model=model, train=train)
+
+    def with_settings(self, settings: Mapping[str, Any]) -> RunConfig:
+        """A copy with dotted-name ``settings``; a new ``kind`` starts from its model defaults."""
+        base = self
+        if "kind" in settings and str(settings["kind"]) != self.kind:
+            base = RunConfig(kind=str(settings["kind"]), train=self.train)
+        rest = {k: v for k, v in settings.items() if k != "kind"}
+        check_setting_names(base, rest)
+        return RunConfig.from_dict(deep_merge(base.to_dict(), nest(rest)))
 
 
-def build_model(kind: str, config: Any, args: dict[str, Any], seed: int) -> AbstractVectorField:
-    """A fresh model ``kind`` from its configuration, data-derived arguments and seed."""
-    if kind not in MODELS:
-        raise ConfigError(f"unknown model {kind!r}; available: {', '.join(MODELS)}")
-    key = jax.random.PRNGKey(seed)
-    if kind == "fhnn":
-        return build_fhnn(config, **args, key=key)
-    if kind == "sindy":
-        return empty_sindy(config)
-    if kind == "dhn":
-        return build_dhn(config, args, args["n_traj"], key)
-    return build_baseline(kind, config, args, key)
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
 
 
 def check_trainable(dataset: Dataset) -> None:
@@ -109,45 +119,106 @@ def check_trainable(dataset: Dataset) -> None:
 
 
 class Run:
-    """A model, its trainer state and where they are saved."""
+    """A model, its trainer state and where they are saved.
+
+    Attributes:
+        folder: the run folder.
+        config: what the run trains (:class:`RunConfig`).
+        args: the data-derived build arguments (:attr:`ModelKind.arguments`).
+        meta: the data set the run was trained on (``data``: its path relative to ``folder``,
+            ``data_sha256``, ``scenario``, ``data_seed``).
+        state: the trainer's state (``None`` before training).
+    """
 
     def __init__(
         self,
         folder: Path,
-        kind: str,
-        model_config: Any,
-        train_config: TrainConfig,
+        config: RunConfig,
         args: dict[str, Any],
         meta: dict[str, Any],
         state: TrainState | None = None,
     ) -> None:
-        self.folder, self.kind, self.model_config, self.train_config = (
-            folder,
-            kind,
-            model_config,
-            train_config,
-        )
-        self.args, self.meta, self.state = args, meta, state
+        self.folder, self.config, self.args, self.meta, self.state = folder, config, args, meta, state
+
+    @property
+    def kind(self) -> str:
+        return self.config.kind
+
+    @property
+    def model_config(self) -> Config:
+        return self.config.model  # type: ignore[return-value]
+
+    @property
+    def train_config(self) -> TrainConfig:
+        return self.config.train
+
+    @property
+    def best_model(self) -> AbstractModel:
+        """The model with the best validation loss so far."""
+        if self.state is None:
+            raise ConfigError(f"{self.folder}: the run has not been trained yet")
+        return self.state.best_model
 
     @classmethod
     def create(
         cls,
         folder: str | os.PathLike[str],
         dataset: Dataset,
-        data_path: str,
-        kind: str,
-        model_config: Any,
-        train_config: TrainConfig,
+        config: RunConfig | None = None,
+        *,
+        data_path: str | os.PathLike[str] | None = None,
+        data_ref: str | None = None,
     ) -> Run:
+        """A new run of ``config`` on ``dataset``.
+
+        Args:
+            folder: the run folder (its parent must exist).
+            dataset: the data set to train on.
+            config: what to train (default: FHNN with the default training).
+            data_path: the file ``dataset`` was read from; recorded relative to ``folder`` with its
+                SHA-256, so that ``evaluate`` and ``inspect`` find it (``None``: a data set in
+                memory; they then need it passed explicitly).
+            data_ref: record this path (relative to ``folder``) instead of ``data_path``'s, for a
+                run folder that will be moved beside its data (a reproduction job).
+        """
         folder = Path(folder)
         if not folder.parent.is_dir():
             raise ConfigError(f"output folder '{folder.parent}' does not exist")
+        config = config or RunConfig()
         check_trainable(dataset)
-        meta = {"data": str(data_path), "scenario": dataset.scenario, "data_seed": dataset.seed}
-        return cls(folder, kind, model_config, train_config, build_arguments(dataset, kind), meta)
+        meta: dict[str, Any] = {"data": None, "scenario": dataset.scenario, "data_seed": dataset.seed}
+        if data_path is not None:
+            meta["data"] = data_ref or os.path.relpath(Path(data_path).resolve(), folder.resolve())
+            meta["data_sha256"] = file_sha256(data_path)
+        return cls(folder, config, MODELS[config.kind].arguments(dataset), meta)
 
-    def skeleton(self) -> AbstractVectorField:
-        return build_model(self.kind, self.model_config, self.args, self.train_config.seed)
+    def skeleton(self) -> AbstractModel:
+        """A fresh model of this run's kind, configuration, build arguments and seed."""
+        return MODELS[self.kind].make(self.model_config, self.args, self.train_config.seed)
+
+    def data_file(self) -> Path:
+        """The data set the run was trained on, checked against its recorded SHA-256."""
+        ref = self.meta.get("data")
+        if not ref:
+            raise DataFormatError(f"{self.folder}: the run records no data file; pass the data set")
+        path = self.folder / ref
+        if not path.is_file() and Path(ref).is_file():  # runs written before paths were relative
+            path = Path(ref)
+        if not path.is_file():
+            raise DataFormatError(
+                f"{self.folder}: its data set {ref!r} is not where the run recorded it; pass the data set"
+            )
+        want = self.meta.get("data_sha256")
+        if want and file_sha256(path) != want:
+            raise DataFormatError(
+                f"{path}: the data set changed since the run {self.folder} was trained on it "
+                "(SHA-256 differs); pass the data set to use explicitly"
+            )
+        return path
+
+    def dataset(self) -> Dataset:
+        """The data set the run was trained on (see :meth:`data_file`)."""
+        return read_dataset(self.data_file())
 
     def train(
         self,
@@ -157,10 +228,12 @@ class Run:
         callback: Callable[[TrainState, dict[str, float]], None] | None = None,
         save: bool = True,
     ) -> TrainState:
-        window = 2 if self.kind == "sindy" else self.skeleton().window
-        trainer = Trainer(self.train_config, dataset.train, dataset.val, window=window)
-        if self.kind == "sindy":  # a regression, not gradient descent: fitted in one go
-            return self._fit_sindy(trainer, dataset, save)
+        """Train (or fit) up to ``until`` Adam steps (default: to the end of every phase),
+        checkpointing at every validation when ``save``; ``callback(state, record)`` at each."""
+        kind = MODELS[self.kind]
+        trainer = Trainer(self.train_config, dataset.train, dataset.val, window=self.skeleton().window)
+        if kind.fit is not None:  # a one-shot fit (a regression), not gradient descent
+            return self._fit(trainer, dataset, save)
         if self.state is None:
             self.state = trainer.init(self.skeleton())
         if self.state.step == 0 and not any(r.get("phase") == "warmup" for r in self.state.history):
@@ -185,10 +258,12 @@ class Run:
                 self.save(polished=True)
         return self.state
 
-    def _fit_sindy(self, trainer: Trainer, dataset: Dataset, save: bool) -> TrainState:
-        model, equations = fit_sindy(self.model_config, dataset.train)
+    def _fit(self, trainer: Trainer, dataset: Dataset, save: bool) -> TrainState:
+        fit = MODELS[self.kind].fit
+        assert fit is not None
+        model, extra = fit(self.model_config, dataset)
         val = trainer.validate(model)
-        record = {"step": 1, **{f"val_{k}": v for k, v in val.items()}, "equations": equations}
+        record = {"step": 1, **{f"val_{k}": v for k, v in val.items()}, **extra}
         self.state = TrainState(
             model=model,
             opt_state=None,
@@ -204,7 +279,8 @@ class Run:
     def save(self, *, polished: bool = False) -> None:
         """Write the checkpoint. During and after the L-BFGS phase only the model files change:
         ``opt_state.eqx`` keeps the Adam state, and ``step`` in run.json says how far the run got."""
-        assert self.state is not None
+        if self.state is None:
+            raise ConfigError(f"{self.folder}: nothing to save before training")
         self.folder.mkdir(exist_ok=True)
         info = {
             "format": RUN_FORMAT,
@@ -226,6 +302,7 @@ class Run:
 
     @classmethod
     def load(cls, folder: str | os.PathLike[str], *, expect_model: str | None = None) -> Run:
+        """The run saved in ``folder`` (of kind ``expect_model`` when given), at its last checkpoint."""
         folder = Path(folder)
         info_path = folder / "run.json"
         if not info_path.is_file():
@@ -241,17 +318,21 @@ class Run:
             raise DataFormatError(f"{info_path}: unknown model {kind!r}")
         if expect_model is not None and kind != expect_model:
             raise DataFormatError(f"{folder}: checkpoint is a {kind!r} model, not {expect_model!r}")
-        model_config = MODELS[kind].from_dict(info["model_config"])
-        train_config = TrainConfig.from_dict(info["train_config"])
-        meta = {k: info[k] for k in ("data", "scenario", "data_seed") if k in info}
-        run = cls(folder, kind, model_config, train_config, info["build_arguments"], meta)
+        try:
+            config = RunConfig.from_dict(
+                {"kind": kind, "model": info["model_config"], "train": info["train_config"]}
+            )
+        except (ConfigError, KeyError) as exc:
+            raise DataFormatError(f"{info_path}: unreadable configuration ({exc})") from None
+        meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed") if k in info}
+        run = cls(folder, config, info["build_arguments"], meta)
         skeleton = run.skeleton()
         try:
             model = eqx.tree_deserialise_leaves(folder / "model.eqx", skeleton)
             best = eqx.tree_deserialise_leaves(folder / "best.eqx", skeleton)
             opt_state = None
-            if kind != "sindy":
-                like = Trainer.optimizer_for(train_config).init(eqx.filter(skeleton, eqx.is_array))
+            if MODELS[kind].fit is None:
+                like = Trainer.optimizer_for(config.train).init(eqx.filter(skeleton, eqx.is_array))
                 opt_state = eqx.tree_deserialise_leaves(folder / "opt_state.eqx", like)
         except (OSError, ValueError, RuntimeError) as exc:
             raise DataFormatError(f"{folder}: checkpoint files missing or incompatible ({exc})") from None
@@ -269,3 +350,32 @@ class Run:
 def _save_leaves(path: Path, tree: Any) -> None:
     with atomic_output(path) as tmp:
         eqx.tree_serialise_leaves(tmp, tree)
+
+
+def train(
+    data: Dataset | str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    config: RunConfig | None = None,
+    *,
+    callback: Callable[[TrainState, dict[str, float]], None] | None = None,
+) -> Run:
+    """Train ``config`` (default: FHNN, default training) on ``data`` (a data set or an HDF5 path)
+    into the run folder ``out``; a folder that already holds this run resumes it."""
+    path = None if isinstance(data, Dataset) else Path(data)
+    dataset = data if isinstance(data, Dataset) else read_dataset(data)
+    out = Path(out)
+    config = config or RunConfig()
+    if (out / "run.json").exists():
+        run = Run.load(out, expect_model=config.kind)
+        changed = run.config.differences(config)
+        if changed:
+            raise ConfigError(f"{out} holds a run with other settings ({', '.join(changed)})")
+    else:
+        run = Run.create(out, dataset, config, data_path=path)
+    run.train(dataset, callback=callback)
+    return run
+
+
+def load_run(folder: str | os.PathLike[str]) -> Run:
+    """The run saved in ``folder``; ``run.best_model`` is its best model, ``run.dataset()`` its data."""
+    return Run.load(folder)

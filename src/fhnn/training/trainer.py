@@ -1,4 +1,4 @@
-"""Training of any :class:`~fhnn.models.base.AbstractVectorField` on a data set (SPEC §5).
+"""Training of any :class:`~fhnn.models.base.AbstractModel` on a data set (SPEC §5).
 
 Loss ``L = w_deriv L_deriv + w_step L_step + λ_flow(step) L_flow``:
 
@@ -14,7 +14,7 @@ Loss ``L = w_deriv L_deriv + w_step L_step + λ_flow(step) L_flow``:
 Three phases:
 
 1. Warm-up (``warmup_steps`` quasi-Newton iterations; only for models whose
-   :meth:`~fhnn.models.base.AbstractVectorField.warmup_filter` names a subset of parameters): the
+   :meth:`~fhnn.models.base.AbstractModel.warmup_filter` names a subset of parameters): the
    named parameters are fitted full-batch first. FHNN with a linear far field fits its linear flow
    and coefficient net this way before the stream MLP joins, so the MLP learns only what a linear
    flow cannot explain (on ``solid_body_vortex`` the warm-up alone recovers Ω to 1e-5 relative).
@@ -45,8 +45,9 @@ import optax
 
 from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
 from fhnn.data.dataset import Split
+from fhnn.data.windows import LossScales, Windows
 from fhnn.errors import ConfigError
-from fhnn.models.base import AbstractVectorField
+from fhnn.models.base import AbstractModel
 
 Array = jax.Array
 
@@ -111,72 +112,14 @@ class TrainConfig(Config):
         return self.lambda_flow * jnp.clip(1.0 - frac, 0.0, 1.0)
 
 
-@dataclass(frozen=True)
-class Windows:
-    """``W`` consecutive samples of a split, for every start ``k`` (trajectory-level windows).
-
-    Shapes: ``s``, ``deriv`` ``(P, W, 4)``; ``t`` ``(P, W)``; ``forces`` ``(P, W, 2)``; ``act``
-    ``(P, 2, 3, 3)``; ``traj`` ``(P,)`` (index of the trajectory in its split). ``W = 2`` gives
-    transition pairs.
-    """
-
-    s: np.ndarray
-    t: np.ndarray
-    deriv: np.ndarray
-    forces: np.ndarray
-    act: np.ndarray
-    traj: np.ndarray
-
-    FIELDS = ("s", "t", "deriv", "forces", "act", "traj")
-
-    @classmethod
-    def of(cls, split: Split, window: int = 2) -> Windows:
-        n, T = split.n_traj, split.n_times
-        if T < window:
-            raise ConfigError(f"trajectories of {T} samples are shorter than the model's window {window}")
-        starts = np.arange(T - window + 1)
-        idx = starts[:, None] + np.arange(window)[None, :]  # (K, W)
-        s = split.states[:, idx].reshape(-1, window, 4)
-        deriv = split.derivs[:, idx].reshape(-1, window, 4)
-        forces = split.forces[:, idx].reshape(-1, window, 2)
-        t = np.broadcast_to(split.t[idx], (n, *idx.shape)).reshape(-1, window)
-        act = np.repeat(split.actuation, starts.size, axis=0)
-        traj = np.repeat(np.arange(n), starts.size)
-        return cls(s=s, t=t, deriv=deriv, forces=forces, act=act, traj=traj)
-
-    def __len__(self) -> int:
-        return int(self.s.shape[0])
-
-    def subset(self, idx: np.ndarray) -> Windows:
-        return Windows(*(getattr(self, k)[idx] for k in self.FIELDS))
-
-    def as_jax(self) -> dict[str, Array]:
-        return {k: jnp.asarray(getattr(self, k)) for k in self.FIELDS}
-
-
-@dataclass(frozen=True)
-class LossScales:
-    """Per-component scales of the derivative and step residuals (from the training split)."""
-
-    deriv: np.ndarray
-    step: np.ndarray
-
-    @classmethod
-    def of(cls, windows: Windows) -> LossScales:
-        floor = lambda x: np.maximum(x, 1e-12)  # noqa: E731
-        deriv = windows.deriv[:, 0]
-        step = windows.s[:, 1] - windows.s[:, 0]
-        return cls(deriv=floor(deriv.std(axis=0)), step=floor(step.std(axis=0)))
-
-
 #: Loss terms that are regularisers: weighted by the annealed ``lambda_flow``, left out of validation.
 REGULARIZERS = ("flow",)
 
 
 def loss_terms(
-    model: AbstractVectorField, batch: dict[str, Array], scales: tuple[Array, Array]
+    model: AbstractModel, batch: dict[str, Array], scales: tuple[Array, Array]
 ) -> dict[str, Array]:
-    """The model's unweighted loss terms on a batch (see :meth:`AbstractVectorField.loss_terms`)."""
+    """The model's unweighted loss terms on a batch (see :meth:`AbstractModel.loss_terms`)."""
     return model.loss_terms(batch, scales)
 
 
@@ -191,10 +134,10 @@ def data_loss(terms: dict[str, Array], config: TrainConfig) -> Array:
 class TrainState:
     """Everything needed to continue training: model, optimiser state, step, best model, history."""
 
-    model: AbstractVectorField
+    model: AbstractModel
     opt_state: Any
     step: int
-    best_model: AbstractVectorField
+    best_model: AbstractModel
     best_val: float
     history: list[dict[str, float]]
 
@@ -247,7 +190,7 @@ class Trainer:
     def _quasi_newton(
         self,
         state: TrainState,
-        start: AbstractVectorField,
+        start: AbstractModel,
         mask: Any,
         iterations: int,
         phase: str,
@@ -293,7 +236,7 @@ class Trainer:
     def _record(
         self,
         state: TrainState,
-        model: AbstractVectorField,
+        model: AbstractModel,
         record: dict[str, Any],
         callback: Callable[[TrainState, dict[str, float]], None] | None,
     ) -> None:
@@ -318,13 +261,13 @@ class Trainer:
         n = len(self.train_pairs)
 
         @eqx.filter_jit
-        def step(model: AbstractVectorField, opt_state: Any, i: Array) -> tuple[Any, Any, dict[str, Array]]:
+        def step(model: AbstractModel, opt_state: Any, i: Array) -> tuple[Any, Any, dict[str, Array]]:
             idx = jax.random.randint(jax.random.fold_in(key, i), (cfg.batch_size,), 0, n)
             batch = {k: v[idx] for k, v in data.items()}
             batch["key"] = jax.random.fold_in(jax.random.fold_in(key, i), 1)
             weight = cfg.flow_weight(i)
 
-            def total(m: AbstractVectorField) -> tuple[Array, dict[str, Array]]:
+            def total(m: AbstractModel) -> tuple[Array, dict[str, Array]]:
                 terms = loss_terms(m, batch, scales)
                 reg = sum((terms[k] for k in REGULARIZERS if k in terms), jnp.zeros(()))
                 loss = data_loss(terms, cfg) + weight * reg
@@ -351,13 +294,13 @@ class Trainer:
 
         return step
 
-    def init(self, model: AbstractVectorField) -> TrainState:
+    def init(self, model: AbstractModel) -> TrainState:
         opt_state = self.optimizer.init(eqx.filter(model, eqx.is_array))
         return TrainState(
             model=model, opt_state=opt_state, step=0, best_model=model, best_val=np.inf, history=[]
         )
 
-    def validate(self, model: AbstractVectorField) -> dict[str, float]:
+    def validate(self, model: AbstractModel) -> dict[str, float]:
         """Loss terms on the validation windows, and ``total``: their unweighted data sum."""
         terms = {k: float(v) for k, v in self._val_fn(model).items()}
         terms["total"] = sum(v for k, v in terms.items() if k not in REGULARIZERS)

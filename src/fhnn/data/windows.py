@@ -1,0 +1,78 @@
+"""Training examples cut from a split: windows of consecutive samples, and the loss scales.
+
+A model learns from windows of ``W`` consecutive samples of one trajectory (``W = 2``: a
+transition pair). :class:`LossScales` holds the per-component standard deviations that make the
+derivative and one-step residuals of positions, velocities and accelerations weigh alike; the
+one-step scale of ``W = 2`` windows is also what the baselines standardise their increments with.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from fhnn.data.dataset import Split
+from fhnn.errors import ConfigError
+
+Array = jax.Array
+
+
+@dataclass(frozen=True)
+class Windows:
+    """``W`` consecutive samples of a split, for every start ``k`` (trajectory-level windows).
+
+    Shapes: ``s``, ``deriv`` ``(P, W, 4)``; ``t`` ``(P, W)``; ``forces`` ``(P, W, 2)``; ``act``
+    ``(P, 2, 3, 3)``; ``traj`` ``(P,)`` (index of the trajectory in its split). ``W = 2`` gives
+    transition pairs.
+    """
+
+    s: np.ndarray
+    t: np.ndarray
+    deriv: np.ndarray
+    forces: np.ndarray
+    act: np.ndarray
+    traj: np.ndarray
+
+    FIELDS = ("s", "t", "deriv", "forces", "act", "traj")
+
+    @classmethod
+    def of(cls, split: Split, window: int = 2) -> Windows:
+        n, T = split.n_traj, split.n_times
+        if T < window:
+            raise ConfigError(f"trajectories of {T} samples are shorter than the model's window {window}")
+        starts = np.arange(T - window + 1)
+        idx = starts[:, None] + np.arange(window)[None, :]  # (K, W)
+        s = split.states[:, idx].reshape(-1, window, 4)
+        deriv = split.derivs[:, idx].reshape(-1, window, 4)
+        forces = split.forces[:, idx].reshape(-1, window, 2)
+        t = np.broadcast_to(split.t[idx], (n, *idx.shape)).reshape(-1, window)
+        act = np.repeat(split.actuation, starts.size, axis=0)
+        traj = np.repeat(np.arange(n), starts.size)
+        return cls(s=s, t=t, deriv=deriv, forces=forces, act=act, traj=traj)
+
+    def __len__(self) -> int:
+        return int(self.s.shape[0])
+
+    def subset(self, idx: np.ndarray) -> Windows:
+        return Windows(*(getattr(self, k)[idx] for k in self.FIELDS))
+
+    def as_jax(self) -> dict[str, Array]:
+        return {k: jnp.asarray(getattr(self, k)) for k in self.FIELDS}
+
+
+@dataclass(frozen=True)
+class LossScales:
+    """Per-component scales of the derivative and step residuals (from the training split)."""
+
+    deriv: np.ndarray
+    step: np.ndarray
+
+    @classmethod
+    def of(cls, windows: Windows) -> LossScales:
+        floor = lambda x: np.maximum(x, 1e-12)  # noqa: E731
+        deriv = windows.deriv[:, 0]
+        step = windows.s[:, 1] - windows.s[:, 0]
+        return cls(deriv=floor(deriv.std(axis=0)), step=floor(step.std(axis=0)))
