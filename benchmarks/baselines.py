@@ -21,10 +21,10 @@ from _common import dataset
 
 import fhnn
 from fhnn.evaluation.evaluate import evaluate
-from fhnn.training.run import MODELS, Run
+from fhnn.models.registry import MODELS
+from fhnn.training.run import Run, RunConfig
 from fhnn.training.trainer import TrainConfig
 
-ORDER = ["fhnn", "node", "hnn", "lnn", "dhn", "dhnn", "sindy"]
 PAPER_5S = {"hnn": 1.77, "lnn": 5.85e10, "dhn": 1.02, "fhnn": 6.09e-4}
 
 
@@ -39,7 +39,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--steps", type=int, default=3000)
     p.add_argument("--only", choices=["solid", "steady"], default=None)
-    p.add_argument("--models", default=",".join(ORDER))
+    p.add_argument("--models", default=",".join(MODELS))
     p.add_argument("--out", type=Path, default=Path("benchmarks/_baselines"))
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
@@ -56,13 +56,12 @@ def main() -> None:
         report[name] = {}
         for kind in models:
             folder = args.out / f"{name}_{kind}"
-            config = MODELS[kind]()
             t0 = time.perf_counter()
             if (folder / "run.json").exists():  # resume (or reuse) an earlier run of this benchmark
                 run = Run.load(folder, expect_model=kind)
             else:
-                train_config = TrainConfig(steps=args.steps, val_every=500)
-                run = Run.create(folder, ds, str(path), kind, config, train_config)
+                config = RunConfig(kind=kind, train=TrainConfig(steps=args.steps, val_every=500))
+                run = Run.create(folder, ds, config, data_path=path)
             run.train(ds)
             secs = time.perf_counter() - t0
             res = {}

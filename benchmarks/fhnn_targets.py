@@ -6,11 +6,12 @@
 2. ``steady_vortex`` with actuation: RMSE(pos) at 5 s — target 1e-4 m; learned m_ax, m_ay, c_l
    within 2 %, c_q(σ) within 2 % over the σ range covered; flow within 1 % relative L2.
 
-Each training run has a wall-clock budget of 10 minutes on a 2-core CPU. The training plans
-(``PLANS``): on ``solid_body_vortex`` a quasi-Newton warm-up of the linear flow and coefficient net
-followed by a quasi-Newton polish of everything (Adam only adds noise there: measured, 4,000 Adam
+Each training run has a wall-clock budget of 10 minutes on a 2-core CPU. The training plans are
+the package's named plans (``fhnn.training.plans.PLANS``, ``fhnn train --plan NAME``): on
+``solid_body_vortex`` ("warmup-polish") a quasi-Newton warm-up of the linear flow and coefficient
+net followed by a quasi-Newton polish of everything (Adam only adds noise there: measured, 4,000 Adam
 steps after the warm-up never got back below the warm-up's validation loss); on ``steady_vortex``
-(a Lamb–Oseen vortex, which the stream MLP must learn) Adam then a polish — the drag split
+("adam-polish"; a Lamb–Oseen vortex, which the stream MLP must learn) Adam then a polish — the drag split
 (``c_l`` against ``c_q(σ)``) is fixed only by the data at small σ, where ``½ρA c_q σ`` is a small
 correction to ``c_l``, so it is the last thing the fit settles: measured, Adam 15,000 + polish 400
 left ``c_l`` 7.9 % off, Adam 12,000 + polish 700 (same time) 0.26 %. The σ bands printed at the end
@@ -33,28 +34,21 @@ from _common import dataset
 import fhnn
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
-from fhnn.models.fhnn import FHNNConfig
-from fhnn.training.run import Run
-from fhnn.training.trainer import TrainConfig
+from fhnn.training.plans import PLANS
+from fhnn.training.run import Run, RunConfig
 
-PLANS = {
-    "solid_body_vortex": {"steps": 0, "warmup_steps": 400, "lbfgs_steps": 400, "lbfgs_pairs": 8000},
-    "steady_vortex": {"steps": 12000, "lbfgs_steps": 700, "lbfgs_pairs": 8000},
-}
+#: The plan each scenario is trained with.
+SCENARIO_PLANS = {"solid_body_vortex": "warmup-polish", "steady_vortex": "adam-polish"}
 
 
 def train(name: str, folder: Path, options: dict):
     ds, path = dataset(name, folder)
-    plan = {**PLANS[name], **options.get("train", {})}
-    print(f"{name}: training plan {plan}", flush=True)
-    run = Run.create(
-        folder / f"run_{name}",
-        ds,
-        str(path),
-        "fhnn",
-        FHNNConfig(**options.get("model", {})),
-        TrainConfig(**plan),
+    plan = PLANS[SCENARIO_PLANS[name]]
+    config = RunConfig.from_dict(
+        {"model": options.get("model", {}), "train": {**plan.train.to_dict(), **options.get("train", {})}}
     )
+    print(f"{name}: training plan {plan.name!r} {config.train.to_dict()}", flush=True)
+    run = Run.create(folder / f"run_{name}", ds, config, data_path=path)
     t0 = time.perf_counter()
     run.train(
         ds,

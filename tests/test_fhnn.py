@@ -12,10 +12,10 @@ from fhnn.errors import ConfigError, DataFormatError
 from fhnn.evaluation.metrics import trajectory_metrics
 from fhnn.evaluation.rollout import rollout
 from fhnn.models.fhnn import FHNN, FHNNConfig, cap, uncap
-from fhnn.physics.dynamics import EquationsOfMotion
-from fhnn.physics.flows import AbstractFlow
 from fhnn.models.fhnn import fhnn_arguments as build_arguments
 from fhnn.models.registry import MODELS
+from fhnn.physics.dynamics import EquationsOfMotion
+from fhnn.physics.flows import AbstractFlow
 from fhnn.training.run import Run, RunConfig, check_trainable
 from fhnn.training.trainer import TrainConfig
 

@@ -94,7 +94,24 @@ def test_output_folder_that_holds_something_else_is_refused(tmp_path: Path) -> N
         (["--seeds", "0"], "error: reproduce: seeds must be > 0, got 0"),
         (["--workers", "0"], "error: --workers must be >= 1, got 0"),
         (["--set", "seeds"], "error: --param expects NAME=VALUE"),
-        (["--set", "data.test_duration=30"], "error: reproduce: test_duration must cover the longest horizon"),
+        (
+            ["--set", "trian.steps=3"],
+            "error: unknown setting 'trian.steps' for reproduce (did you mean 'train.steps'?)",
+        ),
+        (["--set", "steps=3"], "error: unknown setting 'steps' for reproduce (did you mean 'train.steps'?)"),
+        (
+            ["--set", "model.fhnn.widht=3"],
+            "error: unknown setting 'model.fhnn.widht' for reproduce (did you mean 'model.fhnn.width'?)",
+        ),
+        (["--set", "train.seed=2"], "error: reproduce: train.seed is set per job"),
+        (
+            ["--steps", "10", "--set", "train.steps=20"],
+            "error: --steps 10 and the setting train.steps=20 disagree",
+        ),
+        (
+            ["--set", "data.test_duration=30"],
+            "error: reproduce: test_duration must cover the longest horizon",
+        ),
     ],
 )
 def test_reproduce_cli_bad_input_is_one_line_exit_2_and_writes_nothing(

@@ -11,10 +11,12 @@ The names a Python user needs are available here (imported on first use)::
 
     import fhnn
 
-    ds = fhnn.simulate("steady_vortex", n_traj=30, duration=5.0)     # or fhnn.read_dataset(path)
-    run = fhnn.train(ds, "runs/sv", fhnn.RunConfig.from_dict({"train": {"steps": 2000}}))
+    ds = fhnn.simulate("steady_vortex", n_traj=30, duration=5.0)  # or fhnn.read_dataset(path)
+    fhnn.write_dataset(ds, "sv.h5")
+    config = fhnn.RunConfig().with_settings({"model.width": 32, "train.steps": 2000})
+    run = fhnn.train("sv.h5", "runs/sv", config)
     print(fhnn.evaluate(run.best_model, ds, [1, 5])["horizons"])
-    run = fhnn.load_run("runs/sv")                                   # later, from any folder
+    run = fhnn.load_run("runs/sv")  # later, from any folder; run.dataset() is its data set
 """
 
 from __future__ import annotations

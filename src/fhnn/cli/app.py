@@ -48,6 +48,30 @@ stdout = Console()
 err = Console(stderr=True)
 
 
+#: ``--config FILE`` of the commands that take settings.
+ConfigFileOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        help="Settings file (TOML or JSON): names and [section] tables, e.g. [train] lr = 1e-3.",
+    ),
+]
+#: ``--quiet`` of the commands with a progress bar.
+QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+
+
+def SetOption(example: str) -> Any:
+    """The ``--set NAME=VALUE`` option type, with an example of dotted names in its help."""
+    return Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set",
+            metavar="NAME=VALUE",
+            help=f"A setting by dotted name, e.g. {example} (repeatable; wins over --config).",
+        ),
+    ]
+
+
 def parse_params(items: list[str]) -> dict[str, str]:
     """``["NAME=VALUE", ...]`` → ``{NAME: VALUE}``; a malformed item is a :class:`ConfigError`."""
     params: dict[str, str] = {}
@@ -191,20 +215,9 @@ def train(
     seed: Annotated[
         int | None, typer.Option(help="Seed of initialisation and batch order (train.seed) [default: 0]")
     ] = None,
-    config_file: Annotated[
-        Path | None,
-        typer.Option("--config", help="Settings file (TOML or JSON), sections [model] and [train]."),
-    ] = None,
-    set_: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--set",
-            metavar="NAME=VALUE",
-            help="A setting by dotted name, e.g. model.width=32, train.lr=1e-3 (repeatable; wins "
-            "over --config).",
-        ),
-    ] = None,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+    config_file: ConfigFileOption = None,
+    set_: SetOption("model.width=32, train.lr=1e-3") = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Train a model on a data set. If RUN already holds a run it is resumed; options that differ
     from the ones it was started with are refused."""
@@ -396,20 +409,9 @@ def reproduce(
             "(start one here). Needs pip install 'fhnn[ray]'.",
         ),
     ] = None,
-    config_file: Annotated[
-        Path | None,
-        typer.Option("--config", help="Settings file (TOML or JSON), e.g. [train] steps = 3000."),
-    ] = None,
-    set_: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--set",
-            metavar="NAME=VALUE",
-            help="A reproduction setting by dotted name, e.g. models=fhnn,node, data.n_traj=50, "
-            "train.lbfgs_steps=200, model.fhnn.width=32 (repeatable; wins over --config).",
-        ),
-    ] = None,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+    config_file: ConfigFileOption = None,
+    set_: SetOption("models=fhnn,node, data.n_traj=50, train.lbfgs_steps=200, model.fhnn.width=32") = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Regenerate the data, train every model/ablation/scenario/seed of the paper's tables, evaluate,
     and write tables (Markdown, CSV, JSON), figures (PNG, SVG), report.md and index.html into OUT.

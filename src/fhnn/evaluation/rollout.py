@@ -8,29 +8,16 @@ times the initial scale, or a solver failure — is reported per trajectory, nev
 
 from __future__ import annotations
 
+from typing import Any
+
 from fhnn.data.dataset import Split
 from fhnn.models.base import BLOW_UP, ROLLOUT_TOL, STEPS_PER_SAMPLE, AbstractModel, Rollout
 
 
-def rollout(
-    model: AbstractModel,
-    split: Split,
-    *,
-    until: float | None = None,
-    rtol: float = ROLLOUT_TOL,
-    atol: float = ROLLOUT_TOL,
-    from_clean: bool = True,
-) -> Rollout:
-    """Predict every trajectory of ``split`` from ``t = 0`` up to ``until`` [s] (default: the end).
-
-    Args:
-        model: any model (:meth:`AbstractModel.rollout`).
-        split: trajectories (their first states and forcing).
-        until: last time [s]; default: the trajectories' end.
-        rtol, atol: integrator tolerances (continuous models).
-        from_clean: start from the clean first state (SPEC §5) rather than the observed one.
-    """
-    return model.rollout(split, until, rtol=rtol, atol=atol, from_clean=from_clean)
+def rollout(model: AbstractModel, split: Split, **options: Any) -> Rollout:
+    """Predict every trajectory of ``split`` from ``t = 0`` with ``model``; ``options`` (``until``
+    [s], ``rtol``, ``atol``, ``from_clean``) as for :meth:`AbstractModel.rollout`."""
+    return model.rollout(split, **options)
 
 
 __all__ = ["BLOW_UP", "ROLLOUT_TOL", "STEPS_PER_SAMPLE", "Rollout", "rollout"]

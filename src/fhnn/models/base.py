@@ -2,9 +2,12 @@
 
 :class:`AbstractModel` is what training and evaluation see:
 
-- :meth:`AbstractModel.loss_terms` — the unweighted training loss terms on a batch of windows;
+- :meth:`AbstractModel.loss_terms` (abstract) — the unweighted training loss terms on a batch of
+  windows;
 - :meth:`AbstractModel.rollout` — predicted states of a split's trajectories from their first
-  state (and forcing), as a :class:`Rollout`.
+  state (and forcing), as a :class:`Rollout`; it picks the times and start states and marks
+  non-finite predictions as diverged, and each kind implements the prediction itself in the
+  abstract :meth:`AbstractModel.predict`.
 
 Two kinds implement it. :class:`AbstractVectorField` — FHNN and every continuous baseline — is a
 vector field ``ṡ = f(s, t, F_ext)``: ``model(state, t, force)`` takes one state ``(4,)`` [m, m,
@@ -64,7 +67,6 @@ class AbstractModel(eqx.Module):
         Terms named in the trainer's ``REGULARIZERS`` are weighted by the annealed ``λ_flow``.
         """
 
-    @abc.abstractmethod
     def rollout(
         self,
         split: Split,
@@ -75,9 +77,25 @@ class AbstractModel(eqx.Module):
         from_clean: bool = True,
     ) -> Rollout:
         """Predict every trajectory of ``split`` from its start up to ``until`` [s] (default: the
-        trajectories' end) with the trajectory's own forcing. ``rtol``, ``atol``: tolerances of an
-        adaptive solver (ignored by discrete models); ``from_clean``: start from the clean states
-        (SPEC §5) rather than the observed ones."""
+        trajectories' end) with the trajectory's own forcing (:meth:`predict`). ``rtol``, ``atol``:
+        tolerances of an adaptive solver (unused by discrete models); ``from_clean``: start from
+        the clean states (SPEC §5) rather than the observed ones. A trajectory with a non-finite
+        prediction is marked diverged."""
+        t = split.t if until is None else split.t[: samples_until(split.t, until)]
+        start = split.states_clean if from_clean else split.states
+        states, ok = self.predict(start, split, np.asarray(t), rtol, atol)
+        states = np.asarray(states)
+        return Rollout(
+            t=np.asarray(t), states=states, ok=np.asarray(ok) & np.all(np.isfinite(states), axis=(1, 2))
+        )
+
+    @abc.abstractmethod
+    def predict(
+        self, start: np.ndarray, split: Split, t: np.ndarray, rtol: float, atol: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """States ``(N, T, 4)`` at the times ``t`` ``(T,)`` and ``ok`` ``(N,)`` (false where the
+        prediction failed) for the trajectories of ``split``; ``start`` ``(N, ≥T, 4)`` holds the
+        states a model may start from (a continuous model takes ``start[:, 0]``)."""
 
     def warmup_filter(self) -> Any:
         """Which parameters train during the trainer's warm-up phase: a pytree of bools shaped like
@@ -119,25 +137,16 @@ class AbstractVectorField(AbstractModel):
         terms.update(self.regularization(batch["s"][:, 0], batch["t"][:, 0]))
         return terms
 
-    def rollout(
-        self,
-        split: Split,
-        until: float | None = None,
-        *,
-        rtol: float = ROLLOUT_TOL,
-        atol: float = ROLLOUT_TOL,
-        from_clean: bool = True,
-    ) -> Rollout:
-        """Adaptive Dopri8 whose steps land on every sample time (no interpolation error). A
-        non-finite state, a state beyond :data:`BLOW_UP` times the initial scale, or running out of
-        :data:`STEPS_PER_SAMPLE` steps per interval marks the trajectory as diverged."""
-        t = split.t if until is None else split.t[: samples_until(split.t, until)]
-        y0 = (split.states_clean if from_clean else split.states)[:, 0]
+    def predict(
+        self, start: np.ndarray, split: Split, t: np.ndarray, rtol: float, atol: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Adaptive Dopri8 from ``start[:, 0]`` whose steps land on every sample time (no
+        interpolation error). A state beyond :data:`BLOW_UP` times the initial scale, or running
+        out of :data:`STEPS_PER_SAMPLE` steps per interval, fails the trajectory."""
+        y0 = start[:, 0]
         max_steps = STEPS_PER_SAMPLE * (t.size - 1) + 1000
         bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(y0)))))
         ys, ok = solve_forced_batch(
             self, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol, max_steps, bound
         )
-        ys = np.asarray(ys)
-        ok = np.asarray(ok) & np.all(np.isfinite(ys), axis=(1, 2))
-        return Rollout(t=np.asarray(t), states=ys, ok=ok)
+        return np.asarray(ys), np.asarray(ok)

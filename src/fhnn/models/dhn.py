@@ -31,8 +31,8 @@ import numpy as np
 import optax
 
 from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
-from fhnn.data.dataset import Split, samples_until
-from fhnn.models.base import ROLLOUT_TOL, AbstractModel, Rollout
+from fhnn.data.dataset import Split
+from fhnn.models.base import AbstractModel
 
 Array = jax.Array
 
@@ -184,22 +184,14 @@ class DHN(AbstractModel):
         _, rest = jax.lax.scan(step, prefix[1:], ks)
         return jnp.concatenate([prefix, rest])[:T]
 
-    def rollout(
-        self,
-        split: Split,
-        until: float | None = None,
-        *,
-        rtol: float = ROLLOUT_TOL,
-        atol: float = ROLLOUT_TOL,
-        from_clean: bool = True,
-    ) -> Rollout:
-        """Autoregressive rollout of every trajectory of ``split`` (``rtol``/``atol`` unused): each
-        trajectory's code is fitted to its first ``S + 1`` states, then one block step at a time."""
-        t = split.t if until is None else split.t[: samples_until(split.t, until)]
+    def predict(
+        self, start: np.ndarray, split: Split, t: np.ndarray, rtol: float, atol: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Autoregressive rollout (``rtol``/``atol`` unused): each trajectory's code is fitted to
+        its first ``S + 1`` states of ``start``, then one block step at a time."""
         T = t.size
         S = self.block
-        source = split.states_clean if from_clean else split.states
-        states = jnp.asarray(source[:, : S + 1])
+        states = jnp.asarray(start[:, : S + 1])
         forces = jnp.asarray(split.forces[:, : max(T, S + 1)])
         step_scale = jnp.asarray(self.step_scale)
 
@@ -209,8 +201,7 @@ class DHN(AbstractModel):
             return model.generate(prefix, f, z)
 
         out = np.stack([np.asarray(one(self, states[i], forces[i])) for i in range(split.n_traj)])[:, :T]
-        ok = np.all(np.isfinite(out), axis=(1, 2))
-        return Rollout(t=np.asarray(t), states=out, ok=ok)
+        return out, np.ones(split.n_traj, dtype=bool)
 
 
 def build_dhn(config: DHNConfig, stats: dict, n_traj: int, key: Array) -> DHN:

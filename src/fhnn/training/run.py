@@ -186,10 +186,11 @@ class Run:
             raise ConfigError(f"output folder '{folder.parent}' does not exist")
         config = config or RunConfig()
         check_trainable(dataset)
-        meta: dict[str, Any] = {"data": None, "scenario": dataset.scenario, "data_seed": dataset.seed}
+        meta: dict[str, Any] = {"data": None}
         if data_path is not None:
             meta["data"] = data_ref or os.path.relpath(Path(data_path).resolve(), folder.resolve())
             meta["data_sha256"] = file_sha256(data_path)
+        meta.update(scenario=dataset.scenario, data_seed=dataset.seed)
         return cls(folder, config, MODELS[config.kind].arguments(dataset), meta)
 
     def skeleton(self) -> AbstractModel:
@@ -360,18 +361,18 @@ def train(
     callback: Callable[[TrainState, dict[str, float]], None] | None = None,
 ) -> Run:
     """Train ``config`` (default: FHNN, default training) on ``data`` (a data set or an HDF5 path)
-    into the run folder ``out``; a folder that already holds this run resumes it."""
+    into the run folder ``out``. A folder that already holds a run resumes it — with its stored
+    settings when ``config`` is ``None``; a ``config`` that differs from them is refused."""
     path = None if isinstance(data, Dataset) else Path(data)
     dataset = data if isinstance(data, Dataset) else read_dataset(data)
     out = Path(out)
-    config = config or RunConfig()
     if (out / "run.json").exists():
-        run = Run.load(out, expect_model=config.kind)
-        changed = run.config.differences(config)
+        run = Run.load(out)
+        changed = [] if config is None else run.config.differences(config)
         if changed:
-            raise ConfigError(f"{out} holds a run with other settings ({', '.join(changed)})")
+            raise ConfigError(f"{out} holds a run started with other settings ({', '.join(changed)})")
     else:
-        run = Run.create(out, dataset, config, data_path=path)
+        run = Run.create(out, dataset, config or RunConfig(), data_path=path)
     run.train(dataset, callback=callback)
     return run
 

@@ -1,0 +1,147 @@
+"""Run configuration from the command line: dotted settings, settings files, plans, flags that
+must agree, resuming only with the stored settings, and run folders found from anywhere."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from fhnn.cli.app import main
+from fhnn.config import read_settings_file
+from fhnn.data.dataset import write_dataset
+from fhnn.errors import ConfigError
+from fhnn.training.plans import PLANS
+from fhnn.training.run import RunConfig
+
+from .conftest import small_dataset
+
+
+def cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    captured = capsys.readouterr()
+    return info.value.code, captured.out, captured.err
+
+
+@pytest.fixture(scope="module")
+def data_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("data")
+    return write_dataset(
+        small_dataset("steady_vortex", n_traj=6, duration=2.0, test_duration=3.0), folder / "d.h5"
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--set", "model.widht=8"], "unknown setting 'model.widht' for run (did you mean 'model.width'?)"),
+        (["--set", "width=8"], "unknown setting 'width' for run (did you mean 'model.width'?)"),
+        (["--set", "train.lrr=1e-3"], "unknown setting 'train.lrr' for run (did you mean 'train.lr'?)"),
+        (["--set", "train.lr=fast"], "training.lr must be a number, got 'fast'"),
+        (["--seed", "3", "--set", "train.seed=5"], "--seed 3 and the setting train.seed=5 disagree"),
+        (["--steps", "10", "--set", "train.steps=20"], "--steps 10 and the setting train.steps=20 disagree"),
+        (["--model", "hnn", "--set", "kind=fhnn"], "--model hnn and the setting kind=fhnn disagree"),
+        (["--model", "hnnn"], "unknown model 'hnnn' (did you mean 'hnn'?)"),
+        (["--model", "hnn", "--ablation", "relu"], "--ablation applies to fhnn only, not 'hnn'"),
+        (["--plan", "fastest"], "unknown training plan 'fastest'; available: adam, warmup-polish"),
+        (
+            ["--config", "/nonexistent/settings.toml"],
+            "settings file '/nonexistent/settings.toml' does not exist",
+        ),
+    ],
+)
+def test_bad_training_settings_are_one_line_exit_2_and_write_nothing(
+    args: list[str], message: str, data_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    code, _, err = cli(["train", str(data_file), "-o", str(tmp_path / "run"), "-q", *args], capsys)
+    assert code == 2
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_settings_file_sections_and_flags_that_agree(tmp_path: Path) -> None:
+    toml = tmp_path / "s.toml"
+    toml.write_text('kind = "fhnn"\n[model]\nwidth = 8\n[train]\nlr = 1e-3\nlr_boundaries = [0.5]\n')
+    assert read_settings_file(toml) == {
+        "kind": "fhnn",
+        "model.width": 8,
+        "train.lr": 1e-3,
+        "train.lr_boundaries": [0.5],
+    }
+    as_json = tmp_path / "s.json"
+    as_json.write_text(json.dumps({"model": {"width": 8}, "train": {"lr": 1e-3, "lr_boundaries": [0.5]}}))
+    a = RunConfig().with_settings(read_settings_file(toml))
+    b = RunConfig().with_settings(read_settings_file(as_json))
+    assert a == b and a.model.width == 8 and a.train.lr_boundaries == (0.5,)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[model\nwidth = 8\n")
+    with pytest.raises(ConfigError, match=r"settings file '.*bad.toml' is not valid TOML"):
+        read_settings_file(bad)
+    (tmp_path / "s.yaml").write_text("model: {}")
+    with pytest.raises(ConfigError, match="must end in .toml or .json"):
+        read_settings_file(tmp_path / "s.yaml")
+
+
+def test_plans_are_typed_training_configurations() -> None:
+    assert PLANS["adam"].train == RunConfig().train
+    solid = RunConfig().with_settings(
+        {f"train.{k}": v for k, v in PLANS["warmup-polish"].train.to_dict().items()}
+    )
+    assert (solid.train.steps, solid.train.warmup_steps, solid.train.lbfgs_steps) == (0, 400, 400)
+
+
+def test_resume_refuses_other_settings_and_runs_are_found_from_anywhere(
+    data_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    project = tmp_path / "project"
+    project.mkdir()
+    shutil.copy(data_file, project / "d.h5")
+    settings = project / "s.toml"
+    settings.write_text("[model]\nwidth = 8\n[train]\nval_every = 2\n")
+    monkeypatch.chdir(project)
+    start = ["train", "d.h5", "-o", "run", "--steps", "4", "--config", "s.toml", "-q"]
+    code, _, err = cli(start, capsys)
+    assert code == 0, err
+    info = json.loads((project / "run" / "run.json").read_text())
+    assert info["model_config"]["width"] == 8 and info["train_config"]["steps"] == 4
+    assert info["data"] == "../d.h5" and len(info["data_sha256"]) == 64
+    before = (project / "run" / "run.json").read_bytes()
+
+    # the same command, or no options at all, resumes (here: nothing left to do)
+    assert cli(start, capsys)[0] == 0
+    assert cli(["train", "d.h5", "-o", "run", "-q"], capsys)[0] == 0
+    # other settings are refused, naming them, and the run is untouched
+    code, _, err = cli(["train", "d.h5", "-o", "run", "--set", "train.lr=1e-3", "--steps", "4", "-q"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert "run holds a run started with other settings (train.lr: 0.003 stored, 0.001 given)" in err
+    code, _, err = cli(["train", "d.h5", "-o", "run", "--set", "model.width=16", "-q"], capsys)
+    assert code == 2 and "model.width: 8 stored, 16 given" in err
+    assert (project / "run" / "run.json").read_bytes() == before
+
+    # evaluate and inspect from another working directory, then with run and data moved together
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    code, out, err = cli(["evaluate", str(project / "run"), "--horizons", "1,2", "--json"], capsys)
+    assert code == 0, err
+    first = json.loads(out)
+    assert set(first) == {"1", "2", "diverged_count"}
+    code, out, err = cli(["inspect", str(project / "run")], capsys)
+    assert code == 0 and "flow: relative L2 error" in out, err
+    moved = tmp_path / "moved"
+    shutil.move(project, moved)
+    code, out, _ = cli(["evaluate", str(moved / "run"), "--horizons", "1,2", "--json"], capsys)
+    assert code == 0 and json.loads(out) == first
+
+    # a changed data file is noticed; one that is gone is named
+    (moved / "d.h5").write_bytes((moved / "d.h5").read_bytes() + b"\0")
+    code, _, err = cli(["evaluate", str(moved / "run"), "--horizons", "1"], capsys)
+    assert code == 2 and "the data set changed since the run" in err and "SHA-256 differs" in err
+    os.remove(moved / "d.h5")
+    code, _, err = cli(["evaluate", str(moved / "run"), "--horizons", "1"], capsys)
+    assert code == 2 and "its data set '../d.h5' is not where the run recorded it" in err
