@@ -93,7 +93,7 @@ def test_output_folder_that_holds_something_else_is_refused(tmp_path: Path) -> N
         (["--set", "models=gpt"], "error: reproduce: unknown name 'gpt' in models"),
         (["--seeds", "0"], "error: reproduce: seeds must be > 0, got 0"),
         (["--workers", "0"], "error: --workers must be >= 1, got 0"),
-        (["--set", "seeds"], "error: --param expects NAME=VALUE"),
+        (["--set", "seeds"], "error: --set expects NAME=VALUE"),
         (
             ["--set", "trian.steps=3"],
             "error: unknown setting 'trian.steps' for reproduce (did you mean 'train.steps'?)",

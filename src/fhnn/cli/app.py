@@ -7,11 +7,13 @@ Every error caused by input (a bad option, parameter, file) is printed as one li
 from __future__ import annotations
 
 import json
+import signal
 import sys
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from rich import box
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
@@ -21,7 +23,7 @@ from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
-from fhnn.files import check_output_path
+from fhnn.files import check_output_path, check_writable_folder
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, scenario_class
 from fhnn.training.plans import PLANS, get_plan
@@ -72,13 +74,14 @@ def SetOption(example: str) -> Any:
     ]
 
 
-def parse_params(items: list[str]) -> dict[str, str]:
-    """``["NAME=VALUE", ...]`` → ``{NAME: VALUE}``; a malformed item is a :class:`ConfigError`."""
+def parse_params(items: list[str], option: str = "--set") -> dict[str, str]:
+    """``["NAME=VALUE", ...]`` → ``{NAME: VALUE}``; a malformed item is a :class:`ConfigError`
+    naming ``option``."""
     params: dict[str, str] = {}
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or not name.strip() or not value.strip():
-            raise ConfigError(f"--param expects NAME=VALUE, got {item!r}")
+            raise ConfigError(f"{option} expects NAME=VALUE, got {item!r}")
         params[name.strip()] = value.strip()
     return params
 
@@ -118,7 +121,7 @@ def simulate(
 ) -> None:
     """Simulate a ground-truth data set (train/val/test splits) and write it as HDF5."""
     cls = scenario_class(scenario)
-    sc = cls.from_dict(parse_params(param or []))
+    sc = cls.from_dict(parse_params(param or [], "--param"))
     config = SimulationConfig.for_scenario(
         sc,
         n_traj=n_traj,
@@ -217,10 +220,20 @@ def train(
     ] = None,
     config_file: ConfigFileOption = None,
     set_: SetOption("model.width=32, train.lr=1e-3") = None,
+    extend: Annotated[
+        bool,
+        typer.Option(
+            "--extend",
+            help="Continue a run in RUN for more Adam steps: give --steps larger than its own (the "
+            "learning-rate schedule is recomputed for the new total).",
+        ),
+    ] = False,
     quiet: QuietOption = False,
 ) -> None:
-    """Train a model on a data set. If RUN already holds a run it is resumed; options that differ
-    from the ones it was started with are refused."""
+    """Train a model on a data set. If RUN already holds a run it is resumed from its last
+    checkpoint; options that differ from the ones it was started with are refused (--extend
+    allows more steps). Checkpoints are written at every validation and at least every minute;
+    Ctrl-C stops the run, and the same command resumes it."""
     from fhnn.training.run import Run, RunConfig
 
     settings = _settings(
@@ -241,10 +254,13 @@ def train(
         plan_train = {f"train.{k}": v for k, v in get_plan(plan).train.to_dict().items()}
         settings = {**plan_train, **settings}
     config = RunConfig().with_settings(settings)  # every setting checked before any work
+    check_writable_folder(out if out.is_dir() else out.parent)
     dataset = read_dataset(data)
     if (out / "run.json").exists():
         run = Run.load(out, expect_model=kind if "kind" in settings else None)
         wanted = run.config.with_settings(settings)
+        if extend:
+            run.extend(wanted)
         changed = run.config.differences(wanted)
         if changed:
             detail = ", ".join(
@@ -255,8 +271,17 @@ def train(
                 f"{out} holds a run started with other settings ({detail}); rerun without them to "
                 "resume it, or train into a new folder"
             )
-        err.print(f"resuming {out} from step {run.state.step}")
+        if run.finished:
+            stdout.print(
+                f"{out} has finished training ({run.state.step} steps); nothing to do. To train further, "
+                "give a larger --steps with --extend.",
+                soft_wrap=True,
+            )
+            return
+        err.print(f"resuming {out} from step {run.state.step}", soft_wrap=True)
     else:
+        if extend:
+            raise ConfigError(f"--extend continues an existing run, and {out} holds none")
         run = Run.create(out, dataset, config, data_path=data)
     total = run.train_config.steps + run.train_config.lbfgs_steps
     with Progress(
@@ -279,12 +304,29 @@ def train(
             losses = f"{phase}{terms} | val {record['val_total']:.2e}"
             bar.update(task, completed=state.step, losses=losses)
 
-        run.train(dataset, callback=progress)
+        signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops cleanly, like Ctrl-C
+        try:
+            run.train(dataset, callback=progress)
+        except KeyboardInterrupt:
+            bar.stop()
+            kept = (
+                f"{out} keeps the checkpoint of step {run.saved_step}"
+                if run.saved_step is not None
+                else "nothing was saved yet"
+            )
+            err.print(
+                f"interrupted: {kept}; run the same command again to resume", highlight=False, soft_wrap=True
+            )
+            raise typer.Exit(130) from None
     if not quiet:
         best = run.state.best_val
         stdout.print(
             f"trained {run.kind} for {run.state.step} steps; best validation loss {best:.3e}; saved to {out}"
         )
+
+
+#: Horizons [s] ``fhnn evaluate`` reports when none are given (those the trajectories allow).
+DEFAULT_HORIZONS = (1, 2, 5, 16, 60)
 
 
 @app.command()
@@ -293,20 +335,45 @@ def evaluate(
     data: Annotated[
         Path | None, typer.Argument(help="Data set [default: the one the run was trained on]")
     ] = None,
-    horizons: Annotated[str, typer.Option(help="Comma-separated horizons in whole seconds.")] = "1,2,5,16,60",
+    horizons: Annotated[
+        str | None,
+        typer.Option(
+            help="Comma-separated horizons in whole seconds [default: those of 1,2,5,16,60 that the "
+            "trajectories last]."
+        ),
+    ] = None,
     split: Annotated[str, typer.Option(help="train|val|test")] = "test",
     as_json: Annotated[
         bool, typer.Option("--json", help="Print {horizon: {metric: value}} as JSON.")
     ] = False,
 ) -> None:
     """Roll the best model out from each trajectory's first state and report errors at horizons."""
+    from fhnn.data.dataset import SPLITS
     from fhnn.evaluation.evaluate import evaluate as run_evaluation
 
-    try:
-        hs = [float(h) for h in horizons.split(",") if h.strip()]
-    except ValueError:
-        raise ConfigError(f"--horizons expects numbers separated by commas, got {horizons!r}") from None
+    if split not in SPLITS:
+        raise ConfigError(f"--split must be one of {', '.join(SPLITS)}, got {split!r}")
+    hs: list[float] = []
+    if horizons is not None:
+        try:
+            hs = [float(h) for h in horizons.split(",") if h.strip()]
+        except ValueError:
+            raise ConfigError(f"--horizons expects numbers separated by commas, got {horizons!r}") from None
     run, dataset = _load_run(run_dir, data)
+    if horizons is None:
+        length = float(dataset[split].t[-1])
+        hs = [float(h) for h in DEFAULT_HORIZONS if h <= length + 1e-9]
+        if not hs:
+            raise ConfigError(
+                f"the {split} trajectories last {length:g} s, shorter than the shortest horizon (1 s)"
+            )
+        if len(hs) < len(DEFAULT_HORIZONS):
+            err.print(
+                f"horizons {', '.join(f'{h:g}' for h in hs)} s: the {split} trajectories last {length:g} s "
+                "(--horizons chooses others)",
+                highlight=False,
+                soft_wrap=True,
+            )
     result = run_evaluation(run.state.best_model, dataset, hs, split=split)
     if as_json:
         typer.echo(
@@ -314,14 +381,25 @@ def evaluate(
         )
         return
     table = Table(
-        title=f"{run_dir} on {split} ({len(result['diverged'])} trajectories)", title_justify="left"
+        title=f"{run_dir} on {split} ({len(result['diverged'])} trajectories)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        padding=(0, 1),
     )
-    cols = ("rmse_pos", "rmse_vel", "ade", "fde", "within_eps", "diverged", "outside_training")
+    columns = {  # header (two lines, so that the table fits 80 columns), format
+        "rmse_pos": ("RMSE\npos [m]", "{:.3g}"),
+        "rmse_vel": ("RMSE\nvel [m/s]", "{:.3g}"),
+        "ade": ("ADE\n[m]", "{:.3g}"),
+        "fde": ("FDE\n[m]", "{:.3g}"),
+        "within_eps": ("within\n1 cm", "{:.0%}"),
+        "diverged": ("diverged", "{:d}"),
+        "outside_training": ("left\ntraining", "{:.0%}"),
+    }
     table.add_column("H \\[s]", justify="right")
-    for c in cols:
-        table.add_column(c, justify="right")
+    for header, _ in columns.values():
+        table.add_column(header, justify="right")
     for h, m in result["horizons"].items():
-        table.add_row(h, *(f"{m[c]:.3g}" for c in cols))
+        table.add_row(h, *(fmt.format(m[c]) for c, (_, fmt) in columns.items()))
     stdout.print(table)
 
 
@@ -416,8 +494,6 @@ def reproduce(
     """Regenerate the data, train every model/ablation/scenario/seed of the paper's tables, evaluate,
     and write tables (Markdown, CSV, JSON), figures (PNG, SVG), report.md and index.html into OUT.
     Finished jobs are kept: an interrupted run resumes, an unchanged one does nothing."""
-    import signal
-
     from fhnn.experiments.executors import check_workers
     from fhnn.experiments.grid import ReproduceConfig, build_grid
     from fhnn.experiments.reproduce import check_output_folder

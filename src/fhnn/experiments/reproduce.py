@@ -26,7 +26,7 @@ from fhnn.errors import ConfigError
 from fhnn.experiments.executors import Task, check_workers, default_workers, run_local, run_ray
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
 from fhnn.experiments.report import build_report
-from fhnn.files import write_atomic, write_folder_atomic
+from fhnn.files import check_writable_folder, write_atomic, write_folder_atomic
 from fhnn.runtime import __version__
 
 FORMAT = "fhnn-reproduction"
@@ -52,8 +52,7 @@ def check_output_folder(out: Path) -> None:
     """``out`` may be new, empty, or a reproduction folder; anything else is refused."""
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output '{out}' exists and is not a folder")
-    if not out.parent.is_dir():
-        raise ConfigError(f"output folder '{out.parent}' does not exist")
+    check_writable_folder(out if out.is_dir() else out.parent)
     if out.is_dir() and any(out.iterdir()) and not (out / "reproduce.json").is_file():
         raise ConfigError(f"output folder '{out}' is not empty and holds no reproduction (no reproduce.json)")
 

@@ -32,7 +32,7 @@ import numpy as np
 from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
 from fhnn.data.dataset import Dataset, read_dataset
 from fhnn.errors import ConfigError, DataFormatError
-from fhnn.files import atomic_output, write_atomic
+from fhnn.files import atomic_output, check_writable_folder, write_atomic
 from fhnn.models.base import AbstractModel
 from fhnn.models.registry import MODELS
 from fhnn.runtime import __version__
@@ -98,6 +98,18 @@ class RunConfig(Config):
         return RunConfig.from_dict(deep_merge(base.to_dict(), nest(rest)))
 
 
+def checkpoint_interval() -> float:
+    """``FHNN_CHECKPOINT_SECONDS`` (default 60): seconds between checkpoints between validations."""
+    text = os.environ.get("FHNN_CHECKPOINT_SECONDS", "60")
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value >= 0:
+        raise ConfigError(f"FHNN_CHECKPOINT_SECONDS must be a number of seconds >= 0, got {text!r}")
+    return value
+
+
 def file_sha256(path: str | os.PathLike[str]) -> str:
     """Hex SHA-256 of a file's bytes."""
     digest = hashlib.sha256()
@@ -139,6 +151,11 @@ class Run:
         state: TrainState | None = None,
     ) -> None:
         self.folder, self.config, self.args, self.meta, self.state = folder, config, args, meta, state
+        #: The step of the last checkpoint written (``None``: none yet).
+        self.saved_step: int | None = state.step if state is not None else None
+        #: Seconds between checkpoints written between validations (a kill loses at most this much
+        #: work); environment variable ``FHNN_CHECKPOINT_SECONDS``, default 60.
+        self.checkpoint_seconds = checkpoint_interval()
 
     @property
     def kind(self) -> str:
@@ -151,6 +168,41 @@ class Run:
     @property
     def train_config(self) -> TrainConfig:
         return self.config.train
+
+    @property
+    def finished(self) -> bool:
+        """Whether every phase of the training configuration has run."""
+        if self.state is None:
+            return False
+        if MODELS[self.kind].fit is not None:
+            return self.state.step >= 1
+        return self.state.step >= self.train_config.steps + self.train_config.lbfgs_steps
+
+    def extend(self, config: RunConfig) -> None:
+        """Continue this run under ``config``, which may differ from the stored one only by more
+        Adam steps (``train.steps``), and only while no L-BFGS polish has run. The learning-rate
+        schedule is recomputed for the new total, so the result differs from a run started with
+        that many steps."""
+        changed = self.config.differences(config)
+        if changed != ["train.steps"] or config.train.steps <= self.train_config.steps:
+            raise ConfigError(
+                f"--extend continues {self.folder} with more Adam steps only: give --steps larger than "
+                f"its {self.train_config.steps}"
+                + (
+                    f" and no other change ({', '.join(c for c in changed if c != 'train.steps')})"
+                    if changed
+                    else ""
+                )
+            )
+        if (
+            self.train_config.lbfgs_steps
+            and self.state is not None
+            and self.state.step > self.train_config.steps
+        ):
+            raise ConfigError(
+                f"{self.folder} has finished its L-BFGS polish; it cannot be extended with Adam"
+            )
+        self.config = config
 
     @property
     def best_model(self) -> AbstractModel:
@@ -182,8 +234,7 @@ class Run:
                 run folder that will be moved beside its data (a reproduction job).
         """
         folder = Path(folder)
-        if not folder.parent.is_dir():
-            raise ConfigError(f"output folder '{folder.parent}' does not exist")
+        check_writable_folder(folder if folder.is_dir() else folder.parent)
         config = config or RunConfig()
         check_trainable(dataset)
         meta: dict[str, Any] = {"data": None}
@@ -248,7 +299,13 @@ class Run:
             if callback is not None:
                 callback(state, record)
 
-        self.state = trainer.run(self.state, until=until, callback=on_validation)
+        self.state = trainer.run(
+            self.state,
+            until=until,
+            callback=on_validation,
+            checkpoint=(lambda state: self.save()) if save else None,
+            checkpoint_seconds=self.checkpoint_seconds,
+        )
         if save:
             self.save()
         polish = self.train_config.lbfgs_steps > 0 and self.state.step == self.train_config.steps
@@ -291,6 +348,7 @@ class Run:
             "train_config": self.train_config.to_dict(),
             "build_arguments": self.args,
             "step": self.state.step,
+            "skipped_since_record": self.state.skipped,
             "best_val": self.state.best_val,
             "history": self.state.history,
             **self.meta,
@@ -300,6 +358,7 @@ class Run:
         if not polished:
             _save_leaves(self.folder / "opt_state.eqx", self.state.opt_state)
         write_atomic(self.folder / "run.json", json.dumps(info, indent=1))
+        self.saved_step = self.state.step
 
     @classmethod
     def load(cls, folder: str | os.PathLike[str], *, expect_model: str | None = None) -> Run:
@@ -328,15 +387,12 @@ class Run:
         meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed") if k in info}
         run = cls(folder, config, info["build_arguments"], meta)
         skeleton = run.skeleton()
-        try:
-            model = eqx.tree_deserialise_leaves(folder / "model.eqx", skeleton)
-            best = eqx.tree_deserialise_leaves(folder / "best.eqx", skeleton)
-            opt_state = None
-            if MODELS[kind].fit is None:
-                like = Trainer.optimizer_for(config.train).init(eqx.filter(skeleton, eqx.is_array))
-                opt_state = eqx.tree_deserialise_leaves(folder / "opt_state.eqx", like)
-        except (OSError, ValueError, RuntimeError) as exc:
-            raise DataFormatError(f"{folder}: checkpoint files missing or incompatible ({exc})") from None
+        model = _load_leaves(folder / "model.eqx", skeleton)
+        best = _load_leaves(folder / "best.eqx", skeleton)
+        opt_state = None
+        if MODELS[kind].fit is None:
+            like = Trainer.optimizer_for(config.train).init(eqx.filter(skeleton, eqx.is_array))
+            opt_state = _load_leaves(folder / "opt_state.eqx", like)
         run.state = TrainState(
             model=model,
             opt_state=opt_state,
@@ -344,8 +400,24 @@ class Run:
             best_model=best,
             best_val=float(info["best_val"]),
             history=list(info.get("history", [])),
+            skipped=float(info.get("skipped_since_record", 0.0)),
         )
         return run
+
+
+def _load_leaves(path: Path, like: Any) -> Any:
+    """The arrays of ``path`` in the structure of ``like``; a missing, truncated or foreign file is
+    a :class:`DataFormatError` naming it."""
+    if not path.is_file():
+        raise DataFormatError(f"{path}: checkpoint files missing or incompatible (no such file)")
+    try:
+        return eqx.tree_deserialise_leaves(path, like)
+    except (OSError, ValueError, RuntimeError, EOFError) as exc:
+        kind = "truncated or corrupt" if isinstance(exc, OSError | EOFError | ValueError) else "incompatible"
+        raise DataFormatError(
+            f"{path}: checkpoint files missing or incompatible ({kind}: it does not hold this run's "
+            "model; retrain, or restore the file)"
+        ) from None
 
 
 def _save_leaves(path: Path, tree: Any) -> None:

@@ -33,6 +33,7 @@ phase from the last checkpoint.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -132,7 +133,8 @@ def data_loss(terms: dict[str, Array], config: TrainConfig) -> Array:
 
 @dataclass
 class TrainState:
-    """Everything needed to continue training: model, optimiser state, step, best model, history."""
+    """Everything needed to continue training: model, optimiser state, step, best model, history,
+    and the Adam steps skipped (non-finite loss or gradient) since the last history record."""
 
     model: AbstractModel
     opt_state: Any
@@ -140,6 +142,7 @@ class TrainState:
     best_model: AbstractModel
     best_val: float
     history: list[dict[str, float]]
+    skipped: float = 0.0
 
 
 class Trainer:
@@ -312,23 +315,41 @@ class Trainer:
         *,
         until: int | None = None,
         callback: Callable[[TrainState, dict[str, float]], None] | None = None,
+        checkpoint: Callable[[TrainState], None] | None = None,
+        checkpoint_seconds: float = 60.0,
     ) -> TrainState:
-        """Train from ``state.step`` up to ``until`` (default: ``config.steps``)."""
+        """Train from ``state.step`` up to ``until`` (default: ``config.steps``). ``callback`` is
+        called at every validation; ``checkpoint(state)`` also whenever ``checkpoint_seconds`` have
+        passed since the last call or validation, so that a kill between validations loses little
+        (a run resumed from there gives the same result as an uninterrupted one)."""
         cfg = self.config
         until = cfg.steps if until is None else min(until, cfg.steps)
         model, opt_state = state.model, state.opt_state
         last: dict[str, Array] = {}
-        skipped = jnp.zeros(())
+        skipped = jnp.asarray(state.skipped)
+        saved = time.monotonic()
         for i in range(state.step, until):
             model, opt_state, last = self._step_fn(model, opt_state, jnp.asarray(i))
             skipped = skipped + last["skipped"]
             done = i + 1
             if done % cfg.val_every == 0 or done == cfg.steps:
                 record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items() if k != "skipped"}}
-                record["skipped_steps"] = float(skipped)  # since this call started (non-finite loss)
+                record["skipped_steps"] = float(skipped)  # since the previous record (non-finite loss)
                 record["lr"] = float(cfg.schedule()(i))
                 record["lambda_flow"] = float(cfg.flow_weight(jnp.asarray(i)))
-                state.opt_state = opt_state
+                skipped = jnp.zeros(())
+                state.opt_state, state.skipped = opt_state, 0.0
                 self._record(state, model, record, callback)
+                saved = time.monotonic()
+            elif checkpoint is not None and time.monotonic() - saved >= checkpoint_seconds:
+                state.model, state.opt_state, state.step, state.skipped = (
+                    model,
+                    opt_state,
+                    done,
+                    float(skipped),
+                )
+                checkpoint(state)
+                saved = time.monotonic()
         state.model, state.opt_state, state.step = model, opt_state, max(state.step, until)
+        state.skipped = float(skipped)
         return state

@@ -1,0 +1,167 @@
+"""What a new user meets first: default horizons, file modes, output paths, checkpoint errors,
+interrupting and resuming training, finished runs and --extend."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from fhnn.cli.app import main
+from fhnn.data.dataset import write_dataset
+from fhnn.errors import DataFormatError
+from fhnn.training.run import Run
+
+from .conftest import small_dataset
+
+
+def cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    captured = capsys.readouterr()
+    return info.value.code, captured.out, captured.err
+
+
+@pytest.fixture(scope="module")
+def data_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("data")
+    return write_dataset(
+        small_dataset("steady_vortex", n_traj=6, duration=2.0, test_duration=3.0), folder / "d.h5"
+    )
+
+
+@pytest.fixture(scope="module")
+def trained(data_file: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("runs") / "run"
+    with pytest.raises(SystemExit) as info:
+        main(["train", str(data_file), "-o", str(out), "--steps", "6", "--set", "model.width=8", "-q"])
+    assert info.value.code == 0
+    return out
+
+
+def test_evaluate_defaults_to_the_horizons_the_test_set_allows_and_fits_80_columns(
+    trained: Path, capsys: pytest.CaptureFixture
+) -> None:
+    code, out, err = cli(["evaluate", str(trained)], capsys)
+    assert code == 0, err
+    assert "horizons 1, 2 s: the test trajectories last 3 s (--horizons chooses others)" in err
+    rows = [line.split()[0] for line in out.splitlines() if line.strip()[:1].isdigit()]
+    assert rows == ["1", "2"]
+    assert "…" not in out and max(len(line) for line in out.splitlines()) <= 80
+    assert "RMSE" in out and "diverged" in out
+    code, _, err = cli(["evaluate", str(trained), "--split", "training"], capsys)
+    assert code == 2 and "--split must be one of train, val, test, got 'training'" in err
+
+
+def test_finished_runs_say_so_and_extend_needs_more_steps(
+    trained: Path, data_file: Path, capsys: pytest.CaptureFixture
+) -> None:
+    code, out, _ = cli(["train", str(data_file), "-o", str(trained), "-q"], capsys)
+    assert code == 0 and "has finished training (6 steps); nothing to do" in out and "--extend" in out
+    code, _, err = cli(["train", str(data_file), "-o", str(trained), "--extend", "-q"], capsys)
+    assert code == 2 and "--extend continues" in err and "give --steps larger than its 6" in err
+    code, _, err = cli(["train", str(data_file), "-o", str(trained), "--steps", "8", "-q"], capsys)
+    assert code == 2 and "train.steps: 6 stored, 8 given" in err
+    code, out, err = cli(["train", str(data_file), "-o", str(trained), "--steps", "8", "--extend"], capsys)
+    assert code == 0, err
+    assert json.loads((trained / "run.json").read_text())["step"] == 8
+    code, _, err = cli(["train", str(data_file), "-o", str(trained.parent / "new"), "--extend", "-q"], capsys)
+    assert code == 2 and "holds none" in err
+
+
+def test_written_files_get_the_usual_mode_under_the_umask(
+    trained: Path, data_file: Path, tmp_path: Path
+) -> None:
+    old = os.umask(0o022)
+    try:
+        path = write_dataset(
+            small_dataset("steady_vortex", n_traj=3, duration=0.2, test_duration=0.2), tmp_path / "a.h5"
+        )
+        run = Run.load(trained)
+        run.folder = tmp_path / "copy"
+        run.save()
+    finally:
+        os.umask(old)
+    for p in (path, *(run.folder.iterdir())):
+        assert stat.S_IMODE(p.stat().st_mode) == 0o644, p
+
+
+def test_output_paths_that_cannot_be_written_are_named_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch, data_file: Path
+) -> None:
+    (tmp_path / "somefile.h5").write_text("mine")
+    code, _, err = cli(["simulate", "steady_vortex", "-o", str(tmp_path / "somefile.h5" / "out.h5")], capsys)
+    assert code == 2 and err == f"error: output folder '{tmp_path / 'somefile.h5'}' is a file, not a folder\n"
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == locked else real_access(p, mode))
+    code, _, err = cli(["simulate", "steady_vortex", "-o", str(locked / "out.h5")], capsys)
+    assert code == 2 and err == f"error: output folder '{locked}' is not writable\n"
+    code, _, err = cli(["train", str(data_file), "-o", str(locked / "run")], capsys)
+    assert code == 2 and err == f"error: output folder '{locked}' is not writable\n"
+    assert list(locked.iterdir()) == []
+    code, _, err = cli(["simulate", "steady_vortex", "-o", str(tmp_path / "x.h5"), "-p", "gamma"], capsys)
+    assert code == 2 and "--param expects NAME=VALUE" in err
+    code, _, err = cli(["train", str(data_file), "-o", str(tmp_path / "r"), "--set", "train.lr"], capsys)
+    assert code == 2 and "--set expects NAME=VALUE, got 'train.lr'" in err
+
+
+def test_a_corrupt_checkpoint_file_is_named(trained: Path, tmp_path: Path) -> None:
+    import shutil
+
+    copy = tmp_path / "run"
+    shutil.copytree(trained, copy)
+    (copy / "best.eqx").write_bytes((copy / "best.eqx").read_bytes()[:40])
+    with pytest.raises(
+        DataFormatError, match=rf"^{copy / 'best.eqx'}: checkpoint files missing or incompatible"
+    ):
+        Run.load(copy)
+    (copy / "best.eqx").unlink()
+    with pytest.raises(
+        DataFormatError, match=r"best.eqx: checkpoint files missing or incompatible \(no such file\)"
+    ):
+        Run.load(copy)
+
+
+def _fhnn(*args: str) -> list[str]:
+    return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
+
+
+def test_a_kill_before_the_first_validation_resumes_to_the_same_bytes(
+    data_file: Path, tmp_path: Path
+) -> None:
+    args = ["--steps", "400", "--set", "model.width=8", "--set", "train.val_every=400", "-q"]
+    env = {**os.environ, "FHNN_CHECKPOINT_SECONDS": "0.3", "PYTHONUNBUFFERED": "1"}
+    straight = subprocess.run(_fhnn("train", str(data_file), "-o", str(tmp_path / "a"), *args), env=env)
+    assert straight.returncode == 0
+    out = tmp_path / "b"
+    proc = subprocess.Popen(
+        _fhnn("train", str(data_file), "-o", str(out), *args), env=env, stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not (out / "run.json").exists():
+        assert proc.poll() is None, proc.stderr.read()
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    step = json.loads((out / "run.json").read_text())["step"]
+    assert 0 < step < 400  # checkpointed between validations
+    assert f"interrupted: {out} keeps the checkpoint of step" in stderr
+    assert "run the same command again to resume" in stderr
+    resumed = subprocess.run(
+        _fhnn("train", str(data_file), "-o", str(out), *args), env=env, capture_output=True, text=True
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    for name in ("model.eqx", "best.eqx", "opt_state.eqx"):
+        assert (out / name).read_bytes() == (tmp_path / "a" / name).read_bytes(), name
+    a, b = (json.loads((f / "run.json").read_text()) for f in (tmp_path / "a", out))
+    assert a["history"] == b["history"] and a["step"] == b["step"] == 400
