@@ -165,3 +165,67 @@ def test_a_kill_before_the_first_validation_resumes_to_the_same_bytes(
         assert (out / name).read_bytes() == (tmp_path / "a" / name).read_bytes(), name
     a, b = (json.loads((f / "run.json").read_text()) for f in (tmp_path / "a", out))
     assert a["history"] == b["history"] and a["step"] == b["step"] == 400
+
+
+# --- the force models see is the recorded force -----------------------------------------------------
+
+
+def test_rollouts_and_losses_use_the_recorded_forces() -> None:
+    """A data set whose forcing exists only as recorded samples (no actuation parameters): a probe
+    model ṡ = (v, F/m) rolled out from rest must follow the interpolated force exactly."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    from fhnn.data.dataset import Split
+    from fhnn.data.windows import LossScales, Windows
+    from fhnn.models.base import AbstractVectorField
+    from fhnn.physics.actuation import no_actuation
+
+    mass = 2.0
+
+    class Probe(AbstractVectorField):
+        def __call__(self, state, t, force):
+            return jnp.concatenate([state[2:], force / mass])
+
+    t = np.linspace(0.0, 3.0, 31)
+    a, b = 0.4, -0.3  # F_x = a + b t, F_y = 0.5 a: linear, so the interpolant is exact
+    forces = np.zeros((2, t.size, 2))
+    forces[0, :, 0] = a + b * t
+    forces[0, :, 1] = 0.5 * a
+    states = np.zeros((2, t.size, 4))
+    split = Split(
+        t=t, states=states, states_clean=states, derivs=states, forces=forces, actuation=no_actuation(2)
+    )
+    np.testing.assert_array_equal(split.force_residual, forces)
+    ro = Probe().rollout(split)
+    x = (a * t**2 / 2 + b * t**3 / 6) / mass  # hand-integrated from rest
+    np.testing.assert_allclose(ro.states[0, :, 0], x, atol=1e-12)
+    np.testing.assert_allclose(ro.states[0, :, 1], 0.25 * a * t**2 / mass, atol=1e-12)
+    np.testing.assert_allclose(ro.states[0, :, 2], (a * t + b * t**2 / 2) / mass, atol=1e-12)
+    assert np.all(ro.states[1] == 0.0)  # the unforced trajectory stays at rest
+    # the derivative loss sees the recorded force at each window's first sample
+    windows = Windows.of(split)
+    batch = windows.as_jax()
+    deriv = np.zeros_like(windows.deriv)
+    deriv[:, 0, 2:] = windows.forces[:, 0] / mass
+    batch["deriv"] = jnp.asarray(deriv)
+    sc = LossScales.of(windows)
+    terms = Probe().loss_terms(batch, (jnp.ones(4), jnp.asarray(sc.step)))
+    assert float(terms["deriv"]) < 1e-28
+
+
+def test_a_file_whose_forces_disagree_with_its_actuation_is_refused(tmp_path: Path) -> None:
+    import h5py
+
+    from fhnn.data.dataset import read_dataset
+
+    data = small_dataset("steady_vortex", n_traj=4, duration=1.0, test_duration=1.0)
+    path = write_dataset(data, tmp_path / "d.h5")
+    assert read_dataset(path).train.force_residual.max() == 0.0  # simulated: the sinusoids exactly
+    with h5py.File(path, "r+") as f:
+        f["train/forces"][1, 3, 0] += 0.01
+    with pytest.raises(
+        DataFormatError,
+        match=r"/train/forces disagree with /actuation for 1 trajectory\(ies\), first trajectory 1 at t = 0.15 s",
+    ):
+        read_dataset(path)

@@ -16,7 +16,7 @@ import typer
 from rich import box
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
+from rich.table import Column, Table
 
 from fhnn.config import coerce, get_setting, read_settings_file
 from fhnn.data.dataset import read_dataset, write_dataset
@@ -25,7 +25,8 @@ from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
 from fhnn.files import check_output_path, check_writable_folder
 from fhnn.models.registry import MODELS
-from fhnn.physics.scenarios import SCENARIOS, scenario_class
+from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
+from fhnn.runtime import __version__
 from fhnn.training.plans import PLANS, get_plan
 
 # Typer >= 0.29 vendors its own click; older releases raise click's exceptions.
@@ -36,6 +37,13 @@ try:
     _USAGE_ERRORS += (click.exceptions.ClickException,)
 except ImportError:  # pragma: no cover - depends on the Typer release
     pass
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"fhnn {__version__}")
+        raise typer.Exit()
+
 
 app = typer.Typer(
     name="fhnn",
@@ -48,6 +56,16 @@ app = typer.Typer(
 
 stdout = Console()
 err = Console(stderr=True)
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit."),
+    ] = False,
+) -> None:
+    """Floating-Body Hydrodynamic Neural Networks: simulate, learn and evaluate floating-body dynamics."""
 
 
 #: ``--config FILE`` of the commands that take settings.
@@ -170,13 +188,22 @@ def info(
 
 @app.command()
 def scenarios() -> None:
-    """List the scenarios with their parameters and defaults."""
+    """List the scenarios: their parameters with units and defaults, and default data-set sizes."""
     for name, cls in SCENARIOS.items():
-        table = Table(title=f"{name} — {cls.summary}", title_justify="left")
+        d = cls.defaults
+        sizes = (
+            f"{d.n_traj} trajectories split {'/'.join(f'{100 * f:g}' for f in d.split)} %, train/val "
+            f"{d.duration:g} s, test {d.test_duration:g} s, dt {d.dt:g} s, actuation {d.actuation}"
+            + (f", observation noise {d.obs_noise:g}" if d.obs_noise else "")
+        )
+        stdout.print(f"\n[bold]{name}[/bold] — {cls.summary}", soft_wrap=True)
+        stdout.print(f"default data set: {sizes}", soft_wrap=True, highlight=False)
+        table = Table()
         table.add_column("parameter")
         table.add_column("default", justify="right")
+        table.add_column("unit")
         for key, value in cls().to_dict().items():
-            table.add_row(key, str(value))
+            table.add_row(key, str(value), UNITS.get(key, ""))
         stdout.print(table)
 
 
@@ -285,28 +312,29 @@ def train(
         run = Run.create(out, dataset, config, data_path=data)
     total = run.train_config.steps + run.train_config.lbfgs_steps
     with Progress(
-        TextColumn("training"),
-        BarColumn(),
+        TextColumn("{task.fields[phase]:9s}"),
+        BarColumn(bar_width=20),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
-        TextColumn("{task.fields[losses]}"),
+        TextColumn("{task.fields[losses]}", table_column=Column(no_wrap=True, overflow="ellipsis")),
         console=err,
         disable=quiet,
     ) as bar:
-        task = bar.add_task("train", total=total, completed=run.state.step if run.state else 0, losses="")
+        task = bar.add_task(
+            "train", total=total, completed=run.state.step if run.state else 0, losses="", phase="compiling"
+        )
+        names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam"}
 
-        def progress(state: Any, record: dict[str, float]) -> None:
-            terms = " ".join(
-                f"{k[6:]} {v:.2e}" for k, v in record.items() if k.startswith("train_") and k != "train_loss"
-            )
-            phase = {"lbfgs": "L-BFGS ", "warmup": "warm-up "}.get(record.get("phase", ""), "")
-            terms = terms or f"loss {record['train_loss']:.2e}"
-            losses = f"{phase}{terms} | val {record['val_total']:.2e}"
+        def progress(state: Any, record: dict[str, float]) -> None:  # every term is in run.json
+            losses = f"train {record['train_loss']:.1e} val {record['val_total']:.1e}"
             bar.update(task, completed=state.step, losses=losses)
+
+        def stepped(phase: str, step: int) -> None:
+            bar.update(task, completed=step, phase=names.get(phase, phase))
 
         signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops cleanly, like Ctrl-C
         try:
-            run.train(dataset, callback=progress)
+            run.train(dataset, callback=progress, on_step=stepped)
         except KeyboardInterrupt:
             bar.stop()
             kept = (
@@ -422,6 +450,12 @@ def inspect(
     truth = dataset.equations()
     figures = flow_figure(model.flow, truth.flow, dataset, run_dir / "flow")
     figures += coefficient_figure(model.coefficients, truth.coefficients, dataset, run_dir / "coefficients")
+    init = dict(zip(("m_ax", "m_ay", "c_q", "c_l"), run.model_config.init_coefficients, strict=True))
+    coef["_near_initial"] = [
+        n
+        for n, v in init.items()
+        if max(abs(coef[n]["learned_min"] - v), abs(coef[n]["learned_max"] - v)) < 0.05 * v
+    ]
     if as_json:
         typer.echo(
             json.dumps({"coefficients": coef, "flow": flow, "figures": [str(f) for f in figures]}, indent=2)
@@ -454,6 +488,14 @@ def inspect(
             f"{b['c_q']:.2%}",
         )
     stdout.print(bands)
+    still = coef["_near_initial"]
+    if still:
+        stdout.print(
+            f"note: {', '.join(still)} still lie within 5 % of their initial values "
+            f"({', '.join(f'{n} = {init[n]:g}' for n in still)}): training has barely moved them, so they "
+            "say little yet; train longer (fhnn train ... --steps N --extend).",
+            soft_wrap=True,
+        )
     if dataset.actuation == "none":
         stdout.print(
             "note: trained without actuation — only the ratios c / (M + m_a) are identifiable; "

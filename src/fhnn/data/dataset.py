@@ -19,6 +19,7 @@ and raises :class:`~fhnn.errors.DataFormatError` with a one-line reason otherwis
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
 from pathlib import Path
@@ -29,6 +30,7 @@ import numpy as np
 
 from fhnn.errors import DataFormatError
 from fhnn.files import atomic_output
+from fhnn.physics.actuation import force_residual
 from fhnn.physics.body import Body
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.scenarios import Scenario, scenario_class
@@ -94,6 +96,14 @@ class Split:
     def subset(self, index: Any) -> Split:
         """The trajectories ``index`` (anything NumPy can index the first axis with)."""
         return Split(t=self.t, **{k: v[index] for k, v in self.arrays().items() if k != "t"})
+
+    @functools.cached_property
+    def force_residual(self) -> np.ndarray:
+        """The recorded ``forces`` less the sinusoids of ``actuation`` at ``t``, shape ``(N, T, 2)``
+        [N]: zero for simulated data, the recorded forces themselves where the forcing is known
+        only as samples (all amplitudes zero). Models take ``F(t)`` from both
+        (:func:`~fhnn.physics.actuation.forcing`)."""
+        return force_residual(self.actuation, self.t, self.forces)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -283,7 +293,26 @@ def _read_split(path: Path, f: h5py.File, name: str) -> Split:
             raise DataFormatError(f"{path}: /{name}/{key} has {count} NaN or infinite value(s)")
     if np.any(np.diff(t) <= 0):
         raise DataFormatError(f"{path}: /{name}/t is not strictly increasing")
-    return Split(**arrays)
+    split = Split(**arrays)
+    check_forcing(split, f"{path}: /{name}")
+    return split
+
+
+def check_forcing(split: Split, where: str) -> None:
+    """Raise :class:`DataFormatError` if a trajectory with actuation parameters records forces
+    that are not those parameters' sinusoids (a trajectory with all amplitudes zero may record any
+    forces: they are then its forcing, interpolated between samples)."""
+    parametric = np.any(split.actuation[..., 0] != 0.0, axis=(1, 2))
+    off = np.abs(split.force_residual).max(axis=(1, 2)) > 0
+    bad = np.flatnonzero(parametric & off)
+    if bad.size:
+        i = int(bad[0])
+        k = int(np.abs(split.force_residual[i]).max(axis=1).argmax())
+        raise DataFormatError(
+            f"{where}/forces disagree with /actuation for {bad.size} trajectory(ies), first trajectory "
+            f"{i} at t = {split.t[k]:g} s (recorded {split.forces[i, k].tolist()} N, actuation gives "
+            f"{(split.forces[i, k] - split.force_residual[i, k]).tolist()} N)"
+        )
 
 
 def _text(value: Any) -> str:

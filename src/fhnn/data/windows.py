@@ -24,9 +24,10 @@ Array = jax.Array
 class Windows:
     """``W`` consecutive samples of a split, for every start ``k`` (trajectory-level windows).
 
-    Shapes: ``s``, ``deriv`` ``(P, W, 4)``; ``t`` ``(P, W)``; ``forces`` ``(P, W, 2)``; ``act``
-    ``(P, 2, 3, 3)``; ``traj`` ``(P,)`` (index of the trajectory in its split). ``W = 2`` gives
-    transition pairs.
+    Shapes: ``s``, ``deriv`` ``(P, W, 4)``; ``t`` ``(P, W)``; ``forces`` ``(P, W, 2)`` (recorded);
+    ``act`` ``(P, 2, 3, 3)``; ``traj`` ``(P,)`` (index of the trajectory in its split); ``dforce``
+    ``(P, W, 2)``: the recorded forces less the sinusoids of ``act``
+    (:attr:`~fhnn.data.dataset.Split.force_residual`). ``W = 2`` gives transition pairs.
     """
 
     s: np.ndarray
@@ -35,8 +36,9 @@ class Windows:
     forces: np.ndarray
     act: np.ndarray
     traj: np.ndarray
+    dforce: np.ndarray
 
-    FIELDS = ("s", "t", "deriv", "forces", "act", "traj")
+    FIELDS = ("s", "t", "deriv", "forces", "act", "traj", "dforce")
 
     @classmethod
     def of(cls, split: Split, window: int = 2) -> Windows:
@@ -51,7 +53,8 @@ class Windows:
         t = np.broadcast_to(split.t[idx], (n, *idx.shape)).reshape(-1, window)
         act = np.repeat(split.actuation, starts.size, axis=0)
         traj = np.repeat(np.arange(n), starts.size)
-        return cls(s=s, t=t, deriv=deriv, forces=forces, act=act, traj=traj)
+        dforce = split.force_residual[:, idx].reshape(-1, window, 2)
+        return cls(s=s, t=t, deriv=deriv, forces=forces, act=act, traj=traj, dforce=dforce)
 
     def __len__(self) -> int:
         return int(self.s.shape[0])

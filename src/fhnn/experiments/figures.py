@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from fhnn.data.dataset import Dataset
-from fhnn.evaluation.recovery import visited_r_sigma
+from fhnn.evaluation.recovery import flow_recovery, visited_r_sigma
 from fhnn.physics.body import COEFFICIENT_NAMES, AbstractCoefficients
 from fhnn.physics.flows import AbstractFlow
 
@@ -41,6 +41,15 @@ def _velocity_grid(flow: AbstractFlow, xs: np.ndarray, ys: np.ndarray, t: float)
     return u.reshape(ys.size, xs.size, 2)
 
 
+def _coverage_mask(pos: np.ndarray, xs: np.ndarray, ys: np.ndarray, reach: float) -> np.ndarray:
+    """``(len(ys), len(xs))`` bools: grid points within ``reach`` m of a training position."""
+    from scipy.spatial import cKDTree
+
+    gx, gy = np.meshgrid(xs, ys)
+    dist, _ = cKDTree(pos).query(np.column_stack([gx.ravel(), gy.ravel()]))
+    return (dist <= reach).reshape(gx.shape)
+
+
 def flow_figure(
     learned: AbstractFlow,
     truth: AbstractFlow,
@@ -50,28 +59,37 @@ def flow_figure(
     t: float = 0.0,
     formats: tuple[str, ...] = ("png",),
 ) -> list[Path]:
-    """Four panels: quiver (true, learned), streamlines (true, learned) over the training region."""
+    """Three panels over the training region at time ``t``: the true and the learned flow (speed
+    as colour on one shared scale, streamlines), and the error ``|u_θ − u|``; the outline marks
+    where the training data lie (within 0.25 m of a training position), the only place where the
+    learned flow is measured rather than extrapolated."""
     pos = dataset.train.states_clean[..., :2].reshape(-1, 2)
     lo, hi = pos.min(axis=0), pos.max(axis=0)
     pad = 0.05 * (hi - lo)
-    xs = np.linspace(lo[0] - pad[0], hi[0] + pad[0], 25)
-    ys = np.linspace(lo[1] - pad[1], hi[1] + pad[1], 25)
-    fields = {"true": _velocity_grid(truth, xs, ys, t), "learned": _velocity_grid(learned, xs, ys, t)}
-    fig, axes = plt.subplots(2, 2, figsize=(10, 9))
-    for col, (label, u) in enumerate(fields.items()):
-        speed = np.hypot(u[..., 0], u[..., 1])
-        ax = axes[0, col]
-        ax.quiver(xs, ys, u[..., 0], u[..., 1], speed, cmap="viridis")
-        ax.set_title(f"{label} flow (quiver), t = {t:g} s")
-        ax = axes[1, col]
-        strm = ax.streamplot(xs, ys, u[..., 0], u[..., 1], color=speed, cmap="viridis", density=1.2)
-        fig.colorbar(strm.lines, ax=ax, label="|u| [m/s]")
-        ax.set_title(f"{label} flow (streamlines)")
-        for a in axes[:, col]:
-            a.plot(pos[::50, 0], pos[::50, 1], ",", color="0.6")
-            a.set_aspect("equal")
-            a.set_xlabel("x [m]")
-            a.set_ylabel("y [m]")
+    xs = np.linspace(lo[0] - pad[0], hi[0] + pad[0], 60)
+    ys = np.linspace(lo[1] - pad[1], hi[1] + pad[1], 60)
+    true_u, learned_u = _velocity_grid(truth, xs, ys, t), _velocity_grid(learned, xs, ys, t)
+    covered = _coverage_mask(pos, xs, ys, 0.25)
+    speeds = [np.hypot(u[..., 0], u[..., 1]) for u in (true_u, learned_u)]
+    vmax = max(float(np.max(speeds[0][covered], initial=0.0)), float(np.max(speeds[1][covered], initial=0.0)))
+    error = np.hypot(*(learned_u - true_u).transpose(2, 0, 1))
+    rel = flow_recovery(learned, dataset, t=t)["rel_l2"]  # the number `fhnn inspect` reports
+    fig, axes = plt.subplots(1, 3, figsize=(16, 5.2), layout="constrained")
+    for ax, label, u, speed in zip(axes[:2], ("true", "learned"), (true_u, learned_u), speeds, strict=True):
+        mesh = ax.pcolormesh(xs, ys, speed, cmap="viridis", vmin=0.0, vmax=vmax, shading="auto")
+        ax.streamplot(xs, ys, u[..., 0], u[..., 1], color="white", linewidth=0.6, density=1.1, arrowsize=0.7)
+        ax.set_title(f"{label} flow, t = {t:g} s")
+    fig.colorbar(mesh, ax=axes[:2], label="speed |u| [m/s] (one scale for both)", shrink=0.9)
+    err_mesh = axes[2].pcolormesh(xs, ys, error, cmap="magma", shading="auto")
+    fig.colorbar(err_mesh, ax=axes[2], label="|u_θ − u| [m/s]", shrink=0.9)
+    axes[2].set_title(f"error; relative L2 over the data region {rel:.3%}")
+    for ax in axes:
+        ax.contour(xs, ys, covered.astype(float), levels=[0.5], colors="red", linewidths=1.2)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    axes[0].plot([], [], color="red", label="training data region")
+    axes[0].legend(loc="upper right", fontsize=8, framealpha=0.8)
     return _save(fig, path, formats)
 
 
@@ -82,20 +100,33 @@ def coefficient_figure(
     path: Path,
     formats: tuple[str, ...] = ("png",),
 ) -> list[Path]:
-    """Learned and true coefficients against σ at the (r, σ) the training data visits."""
+    """Learned (dots, coloured by r) and true (black) coefficients against σ at the (r, σ) the
+    training data visits, one panel per coefficient."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+
     points = visited_r_sigma(dataset.equations(), dataset, max_points=3000)
     pts = jnp.asarray(points)
     got = np.asarray(jax.vmap(learned)(pts[:, 0], pts[:, 1]))
     want = np.asarray(jax.vmap(truth)(pts[:, 0], pts[:, 1]))
-    fig, axes = plt.subplots(1, 4, figsize=(16, 3.6))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), layout="constrained")
     order = np.argsort(points[:, 1])
-    for i, (ax, name) in enumerate(zip(axes, COEFFICIENT_NAMES, strict=True)):
+    lo, hi = points[:, 1].min(), points[:, 1].max()
+    decades = np.arange(np.floor(np.log10(lo)), np.ceil(np.log10(hi)) + 1)
+    ticks = [m * 10**d for d in decades for m in (1, 2, 5) if lo / 1.05 <= m * 10**d <= hi * 1.05]
+    scatter = None
+    for i, (ax, name) in enumerate(zip(axes.ravel(), COEFFICIENT_NAMES, strict=True)):
+        scatter = ax.scatter(points[:, 1], got[:, i], s=4, c=points[:, 0], cmap="plasma", label="learned")
         ax.plot(points[order, 1], want[order, i], "k-", lw=2, label="true")
-        ax.scatter(points[:, 1], got[:, i], s=3, c=points[:, 0], cmap="plasma", label="learned (colour: r)")
         ax.set_xscale("log")
-        ax.set_xlabel("σ [m/s]")
-        ax.set_title(f"{name} [{UNITS[name]}]")
-    axes[0].legend(fontsize=8)
+        ax.xaxis.set_major_locator(FixedLocator(ticks))  # 1-2-5 ticks, plain labels: none collide
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("σ = |v − u| [m/s]")
+        ax.set_ylabel(f"{name} [{UNITS[name]}]")
+        ax.set_title(name)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    fig.colorbar(scatter, ax=axes, label="r [m] (learned points)", shrink=0.8)
     return _save(fig, path, formats)
 
 

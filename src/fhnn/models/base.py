@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from fhnn.data.dataset import Split, samples_until
-from fhnn.physics.actuation import actuation_force
+from fhnn.physics.actuation import forcing
 from fhnn.physics.integrators import rk4_step, solve_forced_batch
 
 Array = jax.Array
@@ -61,8 +61,10 @@ class AbstractModel(eqx.Module):
         """Unweighted training loss terms on a batch of windows (SPEC §5).
 
         ``batch``: ``s`` ``(B, W, 4)`` consecutive observed states at times ``t`` ``(B, W)``, their
-        true derivatives ``deriv`` ``(B, W, 4)``, forces ``forces`` ``(B, W, 2)`` [N], forcing
-        parameters ``act`` ``(B, 2, 3, 3)``, trajectory index ``traj`` ``(B,)`` and a PRNG ``key``.
+        true derivatives ``deriv`` ``(B, W, 4)``, recorded forces ``forces`` ``(B, W, 2)`` [N],
+        forcing parameters ``act`` ``(B, 2, 3, 3)`` and the recorded forces less their sinusoids
+        ``dforce`` ``(B, W, 2)`` (the force at any time inside the window is
+        :func:`~fhnn.physics.actuation.forcing`), trajectory index ``traj`` ``(B,)``, a PRNG ``key``.
         ``scales``: per-component std of derivatives and of one-step increments ``(4,)`` each.
         Terms named in the trainer's ``REGULARIZERS`` are weighted by the annealed ``λ_flow``.
         """
@@ -125,11 +127,11 @@ class AbstractVectorField(AbstractModel):
         against s_1}`` (both normalised by ``scales``) plus :meth:`regularization`."""
         deriv_scale, step_scale = scales
 
-        def one(s: Array, t: Array, a: Array) -> tuple[Array, Array]:
-            f = lambda x, tt: self(x, tt, actuation_force(a, tt))  # noqa: E731
+        def one(s: Array, t: Array, a: Array, r: Array) -> tuple[Array, Array]:
+            f = lambda x, tt: self(x, tt, forcing(a, tt, t, r))  # noqa: E731
             return f(s[0], t[0]), rk4_step(f, s[0], t[0], t[1] - t[0])
 
-        pred_d, pred_next = jax.vmap(one)(batch["s"], batch["t"], batch["act"])
+        pred_d, pred_next = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
         terms = {
             "deriv": jnp.mean(((pred_d - batch["deriv"][:, 0]) / deriv_scale) ** 2),
             "step": jnp.mean(((pred_next - batch["s"][:, 1]) / step_scale) ** 2),
@@ -146,7 +148,16 @@ class AbstractVectorField(AbstractModel):
         y0 = start[:, 0]
         max_steps = STEPS_PER_SAMPLE * (t.size - 1) + 1000
         bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(y0)))))
+        residual = jnp.asarray(split.force_residual[:, : t.size])
         ys, ok = solve_forced_batch(
-            self, jnp.asarray(y0), jnp.asarray(split.actuation), jnp.asarray(t), rtol, atol, max_steps, bound
+            self,
+            jnp.asarray(y0),
+            jnp.asarray(split.actuation),
+            jnp.asarray(t),
+            rtol,
+            atol,
+            max_steps,
+            bound,
+            residual,
         )
         return np.asarray(ys), np.asarray(ok)

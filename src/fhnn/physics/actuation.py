@@ -3,6 +3,13 @@
 Per trajectory and axis ``i``: ``F_ext,i(t) = Σ_{j=1..3} A_ij sin(2π f_ij t + φ_ij)``, stored as an
 array of shape ``(2, 3, 3)``: ``[axis, mode, (amplitude [N], frequency [Hz], phase [rad])]``.
 A trajectory without actuation has all amplitudes zero.
+
+Models see the force a data set *records* (its ``forces`` at the sample times), through
+:func:`forcing`: the sinusoids of the parameters (exact between samples) plus the linear
+interpolant of what the recorded samples add to them (:func:`force_residual`). For simulated data
+the recorded forces are the sinusoids, the residual is zero and the force exact; for data whose
+forcing is known only as samples (all amplitudes zero, forces recorded) it is the interpolant of
+the samples.
 """
 
 from __future__ import annotations
@@ -50,3 +57,29 @@ def sample_actuation(
 def no_actuation(n: int) -> np.ndarray:
     """``n`` parameter sets with zero force, shape ``(n, 2, 3, 3)``."""
     return np.zeros((n, 2, N_MODES, 3))
+
+
+def force_residual(
+    params: np.ndarray, t: np.ndarray, forces: np.ndarray, *, rtol: float = 1e-9
+) -> np.ndarray:
+    """Recorded ``forces`` ``(N, T, 2)`` [N] at times ``t`` ``(T,)`` less the sinusoids of ``params``
+    ``(N, 2, 3, 3)``, with differences within rounding (``rtol`` of the force scale) set to exactly 0."""
+    sinusoids = np.asarray(
+        jax.vmap(jax.vmap(actuation_force, in_axes=(None, 0)), in_axes=(0, None))(
+            jnp.asarray(params), jnp.asarray(t)
+        )
+    )
+    residual = np.asarray(forces, dtype=float) - sinusoids
+    scale = max(1.0, float(np.max(np.abs(forces), initial=0.0)))
+    residual[np.abs(residual) <= rtol * scale] = 0.0
+    return residual
+
+
+def forcing(params: Array, t: Array, knots: Array | None = None, residual: Array | None = None) -> Array:
+    """``F_ext(t)`` [N], shape ``(2,)``: the sinusoids of ``params`` ``(2, 3, 3)`` plus, when given,
+    the linear interpolant at ``t`` of ``residual`` ``(K, 2)`` sampled at the increasing times
+    ``knots`` ``(K,)`` (held constant outside them)."""
+    force = actuation_force(params, t)
+    if residual is None or knots is None:
+        return force
+    return force + jnp.stack([jnp.interp(t, knots, residual[:, 0]), jnp.interp(t, knots, residual[:, 1])])

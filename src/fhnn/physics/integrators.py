@@ -22,7 +22,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from fhnn.physics.actuation import actuation_force
+from fhnn.physics.actuation import forcing
 
 Array = jax.Array
 VectorField = Callable[[Array, Array], Array]
@@ -110,6 +110,7 @@ def solve_forced_batch(
     atol: float,
     max_steps: int = 200_000,
     bound: Array | None = None,
+    residual: Array | None = None,
 ) -> tuple[Array, Array]:
     """Many trajectories of a forced system ``ṡ = field(s, t, F(t))``, stepping onto every time.
 
@@ -121,14 +122,16 @@ def solve_forced_batch(
             (:func:`~fhnn.physics.actuation.actuation_force`).
         ts: output times [s], shape ``(T,)``.
         rtol, atol, max_steps, bound: as for :func:`adaptive_solve` (``dense=False``).
+        residual: recorded forces less the sinusoids at the times ``ts``, shape ``(N, T, 2)``
+            (:func:`~fhnn.physics.actuation.forcing`); ``None``: the sinusoids alone.
 
     Returns:
         ``(states, ok)`` of shapes ``(N, T, 4)`` and ``(N,)``.
     """
 
-    def one(s0: Array, a: Array) -> tuple[Array, Array]:
+    def one(s0: Array, a: Array, r: Array | None) -> tuple[Array, Array]:
         return adaptive_solve(
-            lambda s, t: field(s, t, actuation_force(a, t)),
+            lambda s, t: field(s, t, forcing(a, t, ts if r is not None else None, r)),
             s0,
             ts,
             rtol=rtol,
@@ -138,4 +141,4 @@ def solve_forced_batch(
             bound=bound,
         )
 
-    return jax.vmap(one)(y0, actuation)
+    return jax.vmap(one)(y0, actuation, residual)

@@ -42,6 +42,50 @@ from fhnn.physics.flows import (
     SuperposedFlow,
 )
 
+#: The unit of every scenario parameter, by name ("1": dimensionless).
+UNITS = {
+    "mass": "kg",
+    "rho": "kg/m³",
+    "area": "m²",
+    "m_ax": "kg",
+    "m_ay": "kg",
+    "c_l": "N·s/m",
+    "cq_inf": "1",
+    "cq_0": "1",
+    "cq_sigma_ref": "m/s",
+    "gamma": "m²/s",
+    "core_radius": "m",
+    "r0_min": "m",
+    "r0_max": "m",
+    "v0_std": "m/s",
+    "gamma_modulation": "1",
+    "gamma_period": "s",
+    "n_modes": "1",
+    "k_min": "rad/m",
+    "k_max": "rad/m",
+    "mode_strength": "m²/s",
+    "modes": "(rad/m, rad/m, rad, m²/s)",
+    "x0_min": "m",
+    "x0_max": "m",
+    "y0_min": "m",
+    "y0_max": "m",
+    "stream_speed": "m/s",
+    "radius": "m",
+    "circulation": "m²/s",
+    "wall_strength": "1",
+    "min_distance_factor": "1",
+    "amplitude": "m",
+    "period": "s",
+    "gravity": "m/s²",
+    "omega": "1/s",
+    "m_a_base": "kg",
+    "m_a_amplitude": "kg",
+    "m_a_rate": "s/m",
+    "c_q": "1",
+    "pos_range": "m",
+    "vel_range": "m/s",
+}
+
 
 @dataclasses.dataclass(frozen=True)
 class DatasetDefaults:

@@ -279,11 +279,15 @@ class Run:
         until: int | None = None,
         callback: Callable[[TrainState, dict[str, float]], None] | None = None,
         save: bool = True,
+        on_step: Callable[[str, int], None] | None = None,
     ) -> TrainState:
         """Train (or fit) up to ``until`` Adam steps (default: to the end of every phase),
-        checkpointing at every validation when ``save``; ``callback(state, record)`` at each."""
+        checkpointing at every validation when ``save``; ``callback(state, record)`` at each,
+        ``on_step(phase, step)`` between them (:class:`~fhnn.training.trainer.Trainer`)."""
         kind = MODELS[self.kind]
-        trainer = Trainer(self.train_config, dataset.train, dataset.val, window=self.skeleton().window)
+        trainer = Trainer(
+            self.train_config, dataset.train, dataset.val, window=self.skeleton().window, on_step=on_step
+        )
         if kind.fit is not None:  # a one-shot fit (a regression), not gradient descent
             return self._fit(trainer, dataset, save)
         if self.state is None:

@@ -148,8 +148,21 @@ class TrainState:
 class Trainer:
     """Trains a model on the train split, validating on the val split."""
 
-    def __init__(self, config: TrainConfig, train: Split, val: Split, *, window: int = 2) -> None:
+    def __init__(
+        self,
+        config: TrainConfig,
+        train: Split,
+        val: Split,
+        *,
+        window: int = 2,
+        on_step: Callable[[str, int], None] | None = None,
+    ) -> None:
+        """``on_step(phase, step)`` (optional) is told of progress between records: after the first
+        step of a phase (its program is then compiled) and at most every 0.25 s after that; phase
+        is "warmup", "adam" or "lbfgs", step counts as in the history."""
         self.config = config
+        self._on_step = on_step
+        self._told = -1.0
         self.train_pairs = Windows.of(train, window)
         val_pairs = Windows.of(val, window)
         if len(val_pairs) > config.val_pairs:
@@ -230,6 +243,7 @@ class Trainer:
         for k in range(iterations):
             params, opt_state, value = step(params, opt_state, frozen, batch)
             done = k + 1
+            self._tell(phase, 0 if phase == "warmup" else cfg.steps + done, first=k == 0)
             if done % every == 0 or done == iterations:
                 record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
                 record.update({"phase": phase, "iteration": done})
@@ -253,6 +267,14 @@ class Trainer:
         state.model, state.step = model, record["step"]
         if callback is not None:
             callback(state, record)
+
+    def _tell(self, phase: str, step: int, *, first: bool) -> None:
+        if self._on_step is None:
+            return
+        now = time.monotonic()
+        if first or now - self._told >= 0.25:
+            self._told = now
+            self._on_step(phase, step)
 
     @staticmethod
     def optimizer_for(config: TrainConfig) -> optax.GradientTransformation:
@@ -332,6 +354,7 @@ class Trainer:
             model, opt_state, last = self._step_fn(model, opt_state, jnp.asarray(i))
             skipped = skipped + last["skipped"]
             done = i + 1
+            self._tell("adam", done, first=i == state.step)
             if done % cfg.val_every == 0 or done == cfg.steps:
                 record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items() if k != "skipped"}}
                 record["skipped_steps"] = float(skipped)  # since the previous record (non-finite loss)
