@@ -229,3 +229,43 @@ def test_a_file_whose_forces_disagree_with_its_actuation_is_refused(tmp_path: Pa
         match=r"/train/forces disagree with /actuation for 1 trajectory\(ies\), first trajectory 1 at t = 0.15 s",
     ):
         read_dataset(path)
+
+
+def test_version_scenario_units_and_the_near_initial_note(
+    trained: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from fhnn import __version__
+
+    code, out, _ = cli(["--version"], capsys)
+    assert code == 0 and out == f"fhnn {__version__}\n"
+    code, out, _ = cli(["scenarios"], capsys)
+    assert code == 0
+    assert "default data set: 100 trajectories split 70/20/10 %, train/val 20 s, test 120 s" in out
+    assert "gamma" in out and "m²/s" in out and "N·s/m" in out
+    code, out, _ = cli(["inspect", str(trained)], capsys)  # 6 steps: the coefficients barely moved
+    assert code == 0 and "still lie within 5 % of their initial values" in out and "--extend" in out
+    code, out, _ = cli(["inspect", str(trained), "--json"], capsys)
+    near = json.loads(out)["coefficients"]["_near_initial"]
+    assert near and set(near) <= {"m_ax", "m_ay", "c_q", "c_l"}
+    for name in ("flow.png", "coefficients.png"):
+        assert (trained / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_progress_is_told_after_the_first_step_of_each_phase(data_file: Path) -> None:
+    from fhnn.data.dataset import read_dataset
+    from fhnn.models.registry import MODELS
+    from fhnn.training.trainer import TrainConfig, Trainer
+
+    ds = read_dataset(data_file)
+    told: list[tuple[str, int]] = []
+    config = TrainConfig(steps=3, val_every=3, warmup_steps=2, lbfgs_steps=2, lbfgs_pairs=50, batch_size=8)
+    trainer = Trainer(config, ds.train, ds.val, on_step=lambda phase, step: told.append((phase, step)))
+    model = MODELS["fhnn"].make(
+        MODELS["fhnn"].config.from_dict({"width": 8}), MODELS["fhnn"].arguments(ds), 0
+    )
+    state = trainer.polish(trainer.run(trainer.warmup(trainer.init(model))))
+    assert state.step == 5
+    firsts = {}
+    for phase, step in told:
+        firsts.setdefault(phase, step)
+    assert firsts == {"warmup": 0, "adam": 1, "lbfgs": 4}

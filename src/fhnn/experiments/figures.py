@@ -147,21 +147,24 @@ def rollout_figure(
         predictions: model name → predicted states ``(K, T, 4)`` (non-finite where diverged).
     """
     k = min(4, truth.shape[0])
-    fig, axes = plt.subplots(1, k, figsize=(4.2 * k, 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, k, figsize=(4.2 * k, 4.8), squeeze=False, layout="constrained")
     for i, ax in enumerate(axes[0]):
         ax.plot(truth[i, :, 0], truth[i, :, 1], "k-", lw=2.2, label="truth")
         ax.plot(truth[i, 0, 0], truth[i, 0, 1], "ko")
         x, y = truth[i, :, 0], truth[i, :, 1]
-        pad = 0.3 * max(np.ptp(x), np.ptp(y), 0.1)
         for name, pred in predictions.items():
             ax.plot(pred[i, :, 0], pred[i, :, 1], lw=1.1, label=name)
-        ax.set_xlim(x.min() - pad, x.max() + pad)
-        ax.set_ylim(y.min() - pad, y.max() + pad)
+        # a square window around the truth, the same shape in every panel (models may leave it)
+        half = 0.5 * max(np.ptp(x), np.ptp(y), 0.1) * 1.6
+        cx, cy = 0.5 * (x.min() + x.max()), 0.5 * (y.min() + y.max())
+        ax.set_xlim(cx - half, cx + half)
+        ax.set_ylim(cy - half, cy + half)
         ax.set_aspect("equal", adjustable="box")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.set_title(f"test trajectory {i}, 0–{t[-1]:g} s")
-    axes[0, 0].legend(fontsize=7, loc="best")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8, frameon=False)
     if title:
         fig.suptitle(title)
     return _save(fig, path, formats)
