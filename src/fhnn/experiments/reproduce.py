@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from fhnn.errors import ConfigError
+from fhnn.errors import ConfigError, DataFormatError
 from fhnn.experiments.executors import Task, check_workers, default_workers, run_local, run_ray
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
 from fhnn.experiments.report import build_report
@@ -52,7 +52,10 @@ def check_output_folder(out: Path) -> None:
     """``out`` may be new, empty, or a reproduction folder; anything else is refused."""
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output '{out}' exists and is not a folder")
-    check_writable_folder(out if out.is_dir() else out.parent)
+    try:
+        check_writable_folder(out if out.is_dir() else out.parent)
+    except DataFormatError as exc:  # an option's value, not a data file: a configuration error
+        raise ConfigError(str(exc)) from None
     if out.is_dir() and any(out.iterdir()) and not (out / "reproduce.json").is_file():
         raise ConfigError(f"output folder '{out}' is not empty and holds no reproduction (no reproduce.json)")
 
