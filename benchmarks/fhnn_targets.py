@@ -34,6 +34,7 @@ from _common import dataset
 import fhnn
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+from fhnn.runtime import default_cache_dir, use_compilation_cache
 from fhnn.training.plans import PLANS
 from fhnn.training.run import Run, RunConfig
 
@@ -69,6 +70,10 @@ def main() -> None:
     p.add_argument("--train", default="{}", help="JSON of TrainConfig options overriding the plans")
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    cache = default_cache_dir()  # as every fhnn command: a second run loads its programs
+    use_compilation_cache(cache)
+    warm = bool(cache) and any(Path(cache).iterdir())
+    print(f"compilation cache: {cache or 'off'} ({'has entries' if warm else 'empty'})")
     options = {"model": json.loads(args.model), "train": json.loads(args.train)}
     print(f"fhnn {fhnn.__version__}; options {options}")
     report = {}

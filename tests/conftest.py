@@ -3,12 +3,14 @@
 Each test process keeps a persistent JAX compilation cache in a private temporary folder (removed
 at exit): the many trainers the tests build compile the same programs again (a resumed run, the
 straight run it is compared with), and a cache hit gives the same executable, so results are
-unchanged and the suite spends less time in XLA.
+unchanged and the suite spends less time in XLA. Commands started by the tests (in-process or as
+subprocesses) use the same folder through ``$FHNN_JAX_CACHE``.
 """
 
 from __future__ import annotations
 
 import atexit
+import os
 import shutil
 import tempfile
 
@@ -19,11 +21,12 @@ import fhnn  # noqa: F401  (enables float64)
 from fhnn.data.dataset import Dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
-from fhnn.runtime import use_compilation_cache
+from fhnn.runtime import CACHE_ENV, use_compilation_cache
 
 _CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
 atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
 use_compilation_cache(_CACHE)
+os.environ[CACHE_ENV] = _CACHE
 
 #: Small data sets: every split present, short trajectories, fast to simulate.
 SMALL = dict(n_traj=6, duration=3.0, test_duration=6.0)

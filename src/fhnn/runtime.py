@@ -4,11 +4,15 @@ JAX's settings are global to a process. Importing :mod:`fhnn` (which imports thi
 switches JAX to float64, so every computation of the package runs in double precision;
 :func:`use_compilation_cache` points JAX's persistent compilation cache at a folder, so a program
 compiled once (a training step, a rollout) is loaded, not compiled again, by later jobs and
-processes that share the folder.
+processes that share the folder. Every ``fhnn`` command uses the folder
+:func:`default_cache_dir` names (``$FHNN_JAX_CACHE``; by default ``~/.cache/fhnn/jax``): a second
+run of the same shapes then loads its training step instead of compiling it (measured in
+``benchmarks/training_speed.py``).
 """
 
 from __future__ import annotations
 
+import os
 from importlib import metadata as _metadata
 
 import jax
@@ -31,4 +35,25 @@ def use_compilation_cache(cache_dir: str | None) -> None:
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
 
 
-__all__ = ["__version__", "use_compilation_cache"]
+#: Environment variable naming the commands' compilation cache folder ("" or "off": no cache).
+CACHE_ENV = "FHNN_JAX_CACHE"
+
+
+def default_cache_dir() -> str | None:
+    """The commands' compilation cache folder: ``$FHNN_JAX_CACHE`` when set (``None`` when it is
+    empty or "off"), else ``$XDG_CACHE_HOME/fhnn/jax`` or ``~/.cache/fhnn/jax``; ``None`` when the
+    folder cannot be created (the cache only saves time)."""
+    value = os.environ.get(CACHE_ENV)
+    if value is not None and value.strip().lower() in ("", "off"):
+        return None
+    if value is None:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        value = os.path.join(base, "fhnn", "jax")
+    try:
+        os.makedirs(value, exist_ok=True)
+    except OSError:
+        return None
+    return value if os.access(value, os.W_OK) else None
+
+
+__all__ = ["CACHE_ENV", "__version__", "default_cache_dir", "use_compilation_cache"]

@@ -26,7 +26,7 @@ from fhnn.errors import ConfigError, FhnnError
 from fhnn.files import check_output_path, check_writable_folder
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
-from fhnn.runtime import __version__
+from fhnn.runtime import __version__, default_cache_dir, use_compilation_cache
 from fhnn.training.plans import PLANS, get_plan
 
 # Typer >= 0.29 vendors its own click; older releases raise click's exceptions.
@@ -65,7 +65,11 @@ def _main(
         typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit."),
     ] = False,
 ) -> None:
-    """Floating-Body Hydrodynamic Neural Networks: simulate, learn and evaluate floating-body dynamics."""
+    """Floating-Body Hydrodynamic Neural Networks: simulate, learn and evaluate floating-body dynamics.
+
+    Compiled programs are cached in $FHNN_JAX_CACHE (default ~/.cache/fhnn/jax; "off": no cache).
+    """
+    use_compilation_cache(default_cache_dir())
 
 
 #: ``--config FILE`` of the commands that take settings.

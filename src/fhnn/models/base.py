@@ -20,8 +20,8 @@ roll themselves out step by step.
 from __future__ import annotations
 
 import abc
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import equinox as eqx
 import jax
@@ -99,10 +99,10 @@ class AbstractModel(eqx.Module):
         prediction failed) for the trajectories of ``split``; ``start`` ``(N, ≥T, 4)`` holds the
         states a model may start from (a continuous model takes ``start[:, 0]``)."""
 
-    def warmup_filter(self) -> Any:
-        """Which parameters train during the trainer's warm-up phase: a pytree of bools shaped like
-        the model (``True``: trains from the first step), or ``None`` (default): every parameter
-        trains from the start and there is no warm-up."""
+    def warmup(self) -> tuple[AbstractModel, Callable[[AbstractModel], AbstractModel]] | None:
+        """What the trainer's warm-up phase fits first: ``(part, restore)``, a model whose every
+        parameter trains during the warm-up and ``restore(fitted_part)``, the full model to go on
+        with; ``None`` (default): no warm-up, every parameter trains from the start."""
         return None
 
     @property

@@ -14,13 +14,15 @@ Loss ``L = w_deriv L_deriv + w_step L_step + λ_flow(step) L_flow``:
 Three phases:
 
 1. Warm-up (``warmup_steps`` quasi-Newton iterations; only for models whose
-   :meth:`~fhnn.models.base.AbstractModel.warmup_filter` names a subset of parameters): the
-   named parameters are fitted full-batch first. FHNN with a linear far field fits its linear flow
-   and coefficient net this way before the stream MLP joins, so the MLP learns only what a linear
-   flow cannot explain (on ``solid_body_vortex`` the warm-up alone recovers Ω to 1e-5 relative).
+   :meth:`~fhnn.models.base.AbstractModel.warmup` names a part): the part is fitted full-batch
+   first. FHNN with a linear far field fits its linear flow and coefficient net this way before
+   the stream MLP joins, so the MLP learns only what a linear flow cannot explain (on
+   ``solid_body_vortex`` the warm-up alone recovers Ω to 1e-5 relative); without the MLP an
+   iteration costs a third of one on the whole model.
 2. Adam with a piecewise-constant learning rate (×``lr_decay`` at each fraction in
    ``lr_boundaries``), minibatches drawn from ``jax.random.fold_in(key, step)`` so that a resumed
-   run draws the same batches as an uninterrupted one.
+   run draws the same batches as an uninterrupted one. Once the penalty's weight is zero a step
+   without it runs (see :meth:`TrainConfig.regularizes`).
 3. Polish (``lbfgs_steps`` quasi-Newton iterations, all parameters) from the best model so far: in
    float64 it lowers the loss far below Adam's noise floor.
 
@@ -106,12 +108,37 @@ class TrainConfig(Config):
         bounds = {int(b * self.steps): self.lr_decay for b in self.lr_boundaries}
         return optax.piecewise_constant_schedule(self.lr, bounds)
 
+    def only(self, fields: tuple[str, ...]) -> TrainConfig:
+        """This configuration with every field but ``fields`` at its default: the static argument
+        of a compiled program that reads only ``fields``, so runs differing elsewhere (the seed,
+        the validation interval) share one program."""
+        return TrainConfig(**{f: getattr(self, f) for f in fields})
+
+    def regularizes(self, step: int) -> bool:
+        """Whether Adam step ``step`` (0-based) computes the flow penalty. Once its annealed weight
+        is zero the penalty is skipped (a second compiled step without it, ~18 % faster on FHNN) —
+        when at least :data:`PENALTY_FREE_MIN_STEPS` steps are left to gain the second program's
+        compilation (~5 s) back."""
+        if self.lambda_flow <= 0 or self.flow_anneal <= 0:
+            return False
+        end = self.flow_anneal * self.steps
+        return step < end or self.steps - end < PENALTY_FREE_MIN_STEPS
+
     def flow_weight(self, step: Array) -> Array:
         if self.flow_anneal <= 0:
             return jnp.asarray(0.0)
         frac = step / (self.flow_anneal * self.steps)
         return self.lambda_flow * jnp.clip(1.0 - frac, 0.0, 1.0)
 
+
+#: Fields read by the compiled Adam step and by the quasi-Newton iteration (see :meth:`TrainConfig.only`).
+ADAM_FIELDS = ("steps", "batch_size", "lr", "lr_boundaries", "lr_decay", "w_deriv", "w_step")
+ADAM_FIELDS += ("lambda_flow", "flow_anneal")
+QUASI_NEWTON_FIELDS = ("w_deriv", "w_step", "lbfgs_memory")
+
+#: Adam steps without the flow penalty it takes to gain a second compiled step back: the step
+#: without it is 1.8 ms faster on FHNN at batch 256 and compiles in ~5 s (training_speed.py).
+PENALTY_FREE_MIN_STEPS = 5000
 
 #: Loss terms that are regularisers: weighted by the annealed ``lambda_flow``, left out of validation.
 REGULARIZERS = ("flow",)
@@ -176,8 +203,6 @@ class Trainer:
         # a fixed key for the stochastic parts of a model's objective (DHN's denoising) on validation
         self._val = {**self.val_pairs.as_jax(), "key": jax.random.PRNGKey(config.seed + 3)}
         self._key = jax.random.PRNGKey(config.seed + 1)
-        self._step_fn = self._make_step()
-        self._val_fn = eqx.filter_jit(lambda m: loss_terms(m, self._val, self.scales))
 
     @property
     def total_steps(self) -> int:
@@ -189,10 +214,11 @@ class Trainer:
     ) -> TrainState:
         """Quasi-Newton on the model's warm-up parameters; afterwards the model, the best model and
         a fresh Adam state start from the result. No-op without a warm-up filter."""
-        mask = state.model.warmup_filter()
-        if mask is None or self.config.warmup_steps == 0:
+        parts = state.model.warmup()
+        if parts is None or self.config.warmup_steps == 0:
             return state
-        state = self._quasi_newton(state, state.model, mask, self.config.warmup_steps, "warmup", callback)
+        part, restore = parts
+        state = self._quasi_newton(state, part, self.config.warmup_steps, "warmup", callback, restore)
         state.best_model, state.best_val = state.model, state.history[-1]["val_total"]
         state.opt_state = self.optimizer.init(eqx.filter(state.model, eqx.is_array))
         return state
@@ -201,53 +227,39 @@ class Trainer:
         self, state: TrainState, callback: Callable[[TrainState, dict[str, float]], None] | None = None
     ) -> TrainState:
         """Quasi-Newton on all parameters from the best model so far."""
-        return self._quasi_newton(state, state.best_model, None, self.config.lbfgs_steps, "lbfgs", callback)
+        return self._quasi_newton(state, state.best_model, self.config.lbfgs_steps, "lbfgs", callback)
 
     def _quasi_newton(
         self,
         state: TrainState,
         start: AbstractModel,
-        mask: Any,
         iterations: int,
         phase: str,
         callback: Callable[[TrainState, dict[str, float]], None] | None,
+        restore: Callable[[AbstractModel], AbstractModel] = lambda m: m,
     ) -> TrainState:
-        """``iterations`` full-batch quasi-Newton steps on the parameters of ``start`` selected by
-        ``mask`` (None: all), on a seeded subset of the training pairs; validates and records five
-        times, the last at the last iterate, which ``state.model`` then holds (``phase`` "warmup":
-        records at step 0; "lbfgs": at the steps after Adam's)."""
+        """``iterations`` full-batch quasi-Newton steps on the parameters of ``start``, on a seeded
+        subset of the training pairs; validates and records ``restore(iterate)`` five times, the
+        last at the last iterate, which ``state.model`` then holds (``phase`` "warmup": records at
+        step 0; "lbfgs": at the steps after Adam's)."""
         cfg = self.config
         n = min(cfg.lbfgs_pairs, len(self.train_pairs))
         idx = np.sort(np.random.default_rng(cfg.seed + 2).choice(len(self.train_pairs), n, replace=False))
         batch = {**self.train_pairs.subset(idx).as_jax(), "key": jax.random.PRNGKey(cfg.seed + 4)}
         params, static = eqx.partition(start, eqx.is_array)
-        params, frozen = eqx.partition(params, True if mask is None else mask)
         scales = self.scales
 
-        def objective(p: Any, fixed: Any, data: dict[str, Array]) -> Array:
-            return data_loss(loss_terms(eqx.combine(p, fixed, static), data, scales), cfg)
-
-        opt = optax.lbfgs(memory_size=cfg.lbfgs_memory)
-
-        # the data and frozen parameters are arguments, not closed-over constants: XLA would
-        # otherwise constant-fold the frozen network over the whole batch at compile time
-        @jax.jit
-        def step(p: Any, s: Any, fixed: Any, data: dict[str, Array]) -> tuple[Any, Any, Array]:
-            fn = lambda q: objective(q, fixed, data)  # noqa: E731
-            value, grad = optax.value_and_grad_from_state(fn)(p, state=s)
-            updates, s = opt.update(grad, s, p, value=value, grad=grad, value_fn=fn)
-            return optax.apply_updates(p, updates), s, value
-
-        opt_state = opt.init(params)
+        qn_cfg = cfg.only(QUASI_NEWTON_FIELDS)
+        opt_state = optax.lbfgs(memory_size=cfg.lbfgs_memory).init(params)
         every = max(1, min(cfg.val_every, iterations // 5 or 1))
         for k in range(iterations):
-            params, opt_state, value = step(params, opt_state, frozen, batch)
+            params, opt_state, value = quasi_newton_step(params, opt_state, static, batch, scales, qn_cfg)
             done = k + 1
             self._tell(phase, 0 if phase == "warmup" else cfg.steps + done, first=k == 0)
             if done % every == 0 or done == iterations:
                 record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
                 record.update({"phase": phase, "iteration": done})
-                self._record(state, eqx.combine(params, frozen, static), record, callback)
+                self._record(state, restore(eqx.combine(params, static)), record, callback)
         return state
 
     def _record(
@@ -281,44 +293,6 @@ class Trainer:
         """Adam with the configuration's piecewise-constant learning rate."""
         return optax.adam(config.schedule())
 
-    def _make_step(self) -> Callable:
-        cfg, optimizer, data, scales, key = self.config, self.optimizer, self._train, self.scales, self._key
-        n = len(self.train_pairs)
-
-        @eqx.filter_jit
-        def step(model: AbstractModel, opt_state: Any, i: Array) -> tuple[Any, Any, dict[str, Array]]:
-            idx = jax.random.randint(jax.random.fold_in(key, i), (cfg.batch_size,), 0, n)
-            batch = {k: v[idx] for k, v in data.items()}
-            batch["key"] = jax.random.fold_in(jax.random.fold_in(key, i), 1)
-            weight = cfg.flow_weight(i)
-
-            def total(m: AbstractModel) -> tuple[Array, dict[str, Array]]:
-                terms = loss_terms(m, batch, scales)
-                reg = sum((terms[k] for k in REGULARIZERS if k in terms), jnp.zeros(()))
-                loss = data_loss(terms, cfg) + weight * reg
-                return loss, {**terms, "loss": loss}
-
-            grads, terms = eqx.filter_grad(total, has_aux=True)(model)
-            updates, new_state = optimizer.update(grads, opt_state, eqx.filter(model, eqx.is_array))
-            # a non-finite loss or gradient (e.g. an LNN's singular Hessian) skips the step instead of
-            # destroying the weights; skipped steps are counted in the history
-            flat = jax.tree_util.tree_leaves(eqx.filter(grads, eqx.is_array))
-            finite = jnp.isfinite(terms["loss"]) & jnp.all(
-                jnp.asarray([jnp.all(jnp.isfinite(g)) for g in flat])
-            )
-            keep = lambda new, old: jnp.where(finite, new, old)  # noqa: E731
-            new_model = eqx.apply_updates(model, updates)
-            params = jax.tree_util.tree_map(
-                keep, eqx.filter(new_model, eqx.is_array), eqx.filter(model, eqx.is_array)
-            )
-            model = eqx.combine(params, model)
-            opt_state = jax.tree_util.tree_map(
-                lambda n, o: jnp.where(finite, n, o) if eqx.is_array(n) else n, new_state, opt_state
-            )
-            return model, opt_state, {**terms, "skipped": 1.0 - finite.astype(float)}
-
-        return step
-
     def init(self, model: AbstractModel) -> TrainState:
         opt_state = self.optimizer.init(eqx.filter(model, eqx.is_array))
         return TrainState(
@@ -327,7 +301,7 @@ class Trainer:
 
     def validate(self, model: AbstractModel) -> dict[str, float]:
         """Loss terms on the validation windows, and ``total``: their unweighted data sum."""
-        terms = {k: float(v) for k, v in self._val_fn(model).items()}
+        terms = {k: float(v) for k, v in _validation_terms(model, self._val, self.scales).items()}
         terms["total"] = sum(v for k, v in terms.items() if k not in REGULARIZERS)
         return terms
 
@@ -350,8 +324,12 @@ class Trainer:
         last: dict[str, Array] = {}
         skipped = jnp.asarray(state.skipped)
         saved = time.monotonic()
+        adam_cfg = cfg.only(ADAM_FIELDS)
         for i in range(state.step, until):
-            model, opt_state, last = self._step_fn(model, opt_state, jnp.asarray(i))
+            regularize = cfg.regularizes(i)
+            model, opt_state, last = adam_step(
+                model, opt_state, jnp.asarray(i), self._train, self.scales, self._key, adam_cfg, regularize
+            )
             skipped = skipped + last["skipped"]
             done = i + 1
             self._tell("adam", done, first=i == state.step)
@@ -376,3 +354,83 @@ class Trainer:
         state.model, state.opt_state, state.step = model, opt_state, max(state.step, until)
         state.skipped = float(skipped)
         return state
+
+
+# The compiled programs of training. They are module-level functions whose data, scales and keys
+# are arguments (not closed-over constants) and whose configuration is a static, hashable argument,
+# so a program is traced once per shape and configuration in a process, and the persistent
+# compilation cache (:func:`fhnn.runtime.use_compilation_cache`) serves it to later processes.
+
+
+@eqx.filter_jit
+def _validation_terms(model: AbstractModel, data: dict[str, Array], scales: tuple[Array, Array]) -> dict:
+    return loss_terms(model, data, scales)
+
+
+@eqx.filter_jit
+def adam_step(
+    model: AbstractModel,
+    opt_state: Any,
+    i: Array,
+    data: dict[str, Array],
+    scales: tuple[Array, Array],
+    key: Array,
+    config: TrainConfig,
+    regularize: bool,
+) -> tuple[AbstractModel, Any, dict[str, Array]]:
+    """Adam step ``i`` on a minibatch of ``config.batch_size`` pairs drawn from ``data`` with
+    ``fold_in(key, i)``. ``regularize`` (static): include the flow penalty at its annealed weight
+    (False once that weight is zero: the penalty is then neither computed nor logged). A non-finite
+    loss or gradient leaves model and optimiser state unchanged (``"skipped": 1``)."""
+    n = next(iter(data.values())).shape[0]
+    idx = jax.random.randint(jax.random.fold_in(key, i), (config.batch_size,), 0, n)
+    batch = {k: v[idx] for k, v in data.items()}
+    batch["key"] = jax.random.fold_in(jax.random.fold_in(key, i), 1)
+    weight = config.flow_weight(i)
+
+    def total(m: AbstractModel) -> tuple[Array, dict[str, Array]]:
+        terms = loss_terms(m, batch, scales)
+        if not regularize:
+            terms = {k: v for k, v in terms.items() if k not in REGULARIZERS}
+        reg = sum((terms[k] for k in REGULARIZERS if k in terms), jnp.zeros(()))
+        loss = data_loss(terms, config) + weight * reg
+        return loss, {**terms, "loss": loss}
+
+    optimizer = Trainer.optimizer_for(config)
+    grads, terms = eqx.filter_grad(total, has_aux=True)(model)
+    updates, new_state = optimizer.update(grads, opt_state, eqx.filter(model, eqx.is_array))
+    # a non-finite loss or gradient (e.g. an LNN's singular Hessian) skips the step instead of
+    # destroying the weights; skipped steps are counted in the history
+    flat = jax.tree_util.tree_leaves(eqx.filter(grads, eqx.is_array))
+    finite = jnp.isfinite(terms["loss"]) & jnp.all(jnp.asarray([jnp.all(jnp.isfinite(g)) for g in flat]))
+    keep = lambda new, old: jnp.where(finite, new, old)  # noqa: E731
+    new_model = eqx.apply_updates(model, updates)
+    params = jax.tree_util.tree_map(
+        keep, eqx.filter(new_model, eqx.is_array), eqx.filter(model, eqx.is_array)
+    )
+    model = eqx.combine(params, model)
+    opt_state = jax.tree_util.tree_map(
+        lambda n, o: jnp.where(finite, n, o) if eqx.is_array(n) else n, new_state, opt_state
+    )
+    return model, opt_state, {**terms, "skipped": 1.0 - finite.astype(float)}
+
+
+@eqx.filter_jit
+def quasi_newton_step(
+    params: Any,
+    opt_state: Any,
+    static: Any,
+    data: dict[str, Array],
+    scales: tuple[Array, Array],
+    config: TrainConfig,
+) -> tuple[Any, Any, Array]:
+    """One L-BFGS iteration (``config.lbfgs_memory`` pairs, zoom line search) on the data loss of
+    ``combine(params, static)`` over the full batch ``data``."""
+    opt = optax.lbfgs(memory_size=config.lbfgs_memory)
+
+    def objective(p: Any) -> Array:
+        return data_loss(loss_terms(eqx.combine(p, static), data, scales), config)
+
+    value, grad = optax.value_and_grad_from_state(objective)(params, state=opt_state)
+    updates, opt_state = opt.update(grad, opt_state, params, value=value, grad=grad, value_fn=objective)
+    return optax.apply_updates(params, updates), opt_state, value

@@ -1,0 +1,234 @@
+"""Where training time goes, and how it compares with its anchors. Prints ratios measured in one run.
+
+1. Time per step of each phase on ``solid_body_vortex`` (64 trajectories): an Adam step at batch 256
+   with and without the flow penalty (its annealed weight is zero for the second half of the steps,
+   where the trainer runs a second compiled step without it), the gradient of each loss term alone
+   (where a step's time goes), and a quasi-Newton iteration's objective and gradient on the L-BFGS
+   pair set, for the warm-up part (linear flow and coefficients, no stream MLP) and for the whole
+   model.
+2. Compilation of the Adam step: a first job, a second job with the same shapes in the same process
+   (the trainer's programs are module-level, so nothing is traced again), and a second job in a new
+   process sharing the persistent compilation cache (what every ``fhnn`` command uses).
+3. Seeds trained as one program: ``N`` models stacked and one ``vmap``-ed Adam step, against ``N``
+   sequential steps (throughput ratio).
+4. With ``--targets``: time to the accuracy targets (``benchmarks/fhnn_targets.py`` with the package's
+   plans) against this project's earlier times (296 s ``solid_body_vortex``, 495 s ``steady_vortex``)
+   and the authors' JAX code (1,978 s for its 18,000 steps; RMSE(pos) 1.2e-4 m at 1 s).
+
+Usage::
+
+    python benchmarks/training_speed.py [--seeds 3] [--targets] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from _common import dataset
+
+import fhnn
+from fhnn.models.registry import MODELS
+from fhnn.runtime import use_compilation_cache
+from fhnn.training.run import RunConfig
+from fhnn.training.trainer import ADAM_FIELDS, TrainConfig, Trainer, adam_step, data_loss, loss_terms
+
+#: Anchors: earlier times to the targets on this 2-core CPU, and the authors' code on its own data.
+BEFORE = {"solid_body_vortex": 296.0, "steady_vortex": 495.0}
+AUTHORS_SECONDS = 1978.0
+
+
+def seconds_per_call(fn, repeats: int) -> float:
+    """Mean wall time of ``fn()`` over ``repeats`` calls after one warm call."""
+    jax.block_until_ready(fn())
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        out = fn()
+    jax.block_until_ready(out)
+    return (time.perf_counter() - t0) / repeats
+
+
+def fresh(ds, seed: int = 0):
+    return MODELS["fhnn"].make(RunConfig().model, MODELS["fhnn"].arguments(ds), seed)
+
+
+def phases(ds) -> None:
+    cfg = TrainConfig()
+    tr = Trainer(cfg, ds.train, ds.val)
+    state = tr.init(fresh(ds))
+    m, o, ac = state.model, state.opt_state, cfg.only(ADAM_FIELDS)
+    step = {
+        reg: seconds_per_call(
+            lambda r=reg: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, ac, r), 100
+        )
+        for reg in (True, False)
+    }
+    print("1. time per step (solid_body_vortex, float64, batch 256)")
+    print(f"  Adam step with the flow penalty     {step[True] * 1e3:7.2f} ms")
+    print(
+        f"  Adam step without it (2nd half)     {step[False] * 1e3:7.2f} ms  "
+        f"(ratio {step[False] / step[True]:.2f})"
+    )
+    batch = {k: v[:256] for k, v in tr._train.items()} | {"key": jax.random.PRNGKey(0)}
+    for which in (("deriv",), ("step",), ("deriv", "step"), ("flow",)):
+        grad = eqx.filter_jit(
+            eqx.filter_grad(lambda mm, w=which: sum(loss_terms(mm, batch, tr.scales)[k] for k in w))
+        )
+        t = seconds_per_call(lambda g=grad: g(m), 100)
+        print(
+            f"    gradient of {'+'.join(which):11s} alone {t * 1e3:7.2f} ms  ({t / step[True]:.0%} of a step)"
+        )
+    n = min(8000, len(tr.train_pairs))
+    idx = np.sort(np.random.default_rng(2).choice(len(tr.train_pairs), n, replace=False))
+    big = {**tr.train_pairs.subset(idx).as_jax(), "key": jax.random.PRNGKey(4)}
+    part, _ = m.warmup()
+    for label, model in (("warm-up part", part), ("whole model", m)):
+        params, static = eqx.partition(model, eqx.is_array)
+
+        @jax.jit
+        def value_and_grad(p, data, static=static):
+            return jax.value_and_grad(
+                lambda q: data_loss(loss_terms(eqx.combine(q, static), data, tr.scales), cfg)
+            )(p)
+
+        t = seconds_per_call(lambda f=value_and_grad, p=params: f(p, big), 10)
+        print(f"  quasi-Newton value+gradient, {label:12s} ({n} pairs) {t:.3f} s")
+
+
+def compile_times(ds, path: Path) -> None:
+    print("2. compilation of the Adam step (first call minus one step)")
+    cfg = TrainConfig(steps=1000)
+    with tempfile.TemporaryDirectory() as cache:
+        script = (
+            "import sys, time; sys.path.insert(0, 'benchmarks');"
+            "import jax, jax.numpy as jnp; from fhnn.runtime import use_compilation_cache;"
+            f"use_compilation_cache({cache!r});"
+            "from fhnn.data.dataset import read_dataset; from training_speed import first_call;"
+            f"print(first_call(read_dataset({str(path)!r}), {cfg.steps}))"
+        )
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(["benchmarks", os.environ.get("PYTHONPATH", "")])}
+        runs = [
+            float(
+                subprocess.run(
+                    [sys.executable, "-c", script], capture_output=True, text=True, env=env, check=True
+                ).stdout.split()[-1]
+            )
+            for _ in range(2)
+        ]
+    use_compilation_cache(None)
+    first_call(ds, cfg.steps, seed=0)  # this process's first job of these shapes
+    same = first_call(ds, cfg.steps, seed=5)
+    print(f"  first job, empty cache                    {runs[0]:6.2f} s")
+    print(f"  second job, same process (seed 5)         {same:6.2f} s")
+    print(f"  second job, new process, persistent cache {runs[1]:6.2f} s  (target < 1 s)")
+
+
+def first_call(ds, steps: int, seed: int = 0) -> float:
+    """Seconds of the first Adam step of a new trainer, less one compiled step."""
+    cfg = TrainConfig(steps=steps, seed=seed)
+    tr = Trainer(cfg, ds.train, ds.val)
+    state = tr.init(fresh(ds, seed))
+    args = (
+        state.model,
+        state.opt_state,
+        jnp.asarray(1),
+        tr._train,
+        tr.scales,
+        tr._key,
+        cfg.only(ADAM_FIELDS),
+        True,
+    )
+    t0 = time.perf_counter()
+    jax.block_until_ready(adam_step(*args))
+    first = time.perf_counter() - t0
+    return first - seconds_per_call(lambda: adam_step(*args), 10)
+
+
+def seeds_as_one(ds, n: int) -> None:
+    print(f"3. {n} seeds as one program (vmap over stacked models) against {n} sequential steps")
+    cfg = TrainConfig()
+    ac = cfg.only(ADAM_FIELDS)
+    trainers = [Trainer(TrainConfig(seed=s), ds.train, ds.val) for s in range(n)]
+    states = [t.init(fresh(ds, s)) for s, t in enumerate(trainers)]
+    data, scales = trainers[0]._train, trainers[0].scales
+    keys = jnp.stack([t._key for t in trainers])
+
+    def stack(trees):
+        return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs) if eqx.is_array(xs[0]) else xs[0], *trees)
+
+    models = stack([s.model for s in states])
+    opts = stack([s.opt_state for s in states])
+
+    @eqx.filter_jit
+    def batched(models, opts, i, keys):
+        return eqx.filter_vmap(
+            lambda m, o, k: adam_step(m, o, i, data, scales, k, ac, True),
+            in_axes=(eqx.if_array(0), eqx.if_array(0), 0),
+        )(models, opts, keys)
+
+    one = seconds_per_call(lambda: batched(models, opts, jnp.asarray(1), keys), 50)
+    seq = seconds_per_call(
+        lambda: [
+            adam_step(s.model, s.opt_state, jnp.asarray(1), data, scales, k, ac, True)
+            for s, k in zip(states, keys, strict=True)
+        ],
+        50,
+    )
+    print(
+        f"  {n} sequential steps {seq * 1e3:7.2f} ms; one vmapped step {one * 1e3:7.2f} ms; "
+        f"throughput ratio {seq / one:.2f} (target ≥ 2)"
+    )
+
+
+def to_targets(out: Path) -> None:
+    print("4. time to the accuracy targets (benchmarks/fhnn_targets.py, the package's plans)")
+    for name, only in (("solid_body_vortex", "solid"), ("steady_vortex", "steady")):
+        log = subprocess.run(
+            [sys.executable, "benchmarks/fhnn_targets.py", "--only", only, "--out", str(out)],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        lines = [
+            l
+            for l in log.splitlines()
+            if "trained in" in l or "RMSE" in l or "max rel" in l or "relative L2" in l
+        ]
+        secs = float(next(l for l in lines if "trained in" in l).split("trained in")[1].split()[0])
+        print(
+            f"  {name}: {secs:.0f} s, {BEFORE[name] / secs:.2f}× faster than before ({BEFORE[name]:.0f} s), "
+            f"{AUTHORS_SECONDS / secs:.1f}× faster than the authors' code ({AUTHORS_SECONDS:.0f} s)"
+        )
+        for line in lines[1:]:
+            print("   ", line.strip())
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--targets", action="store_true", help="also train to the accuracy targets (~5 min)")
+    p.add_argument("--out", type=Path, default=Path("benchmarks/_training_speed"))
+    args = p.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    print(
+        f"fhnn {fhnn.__version__}, jax {jax.__version__}, {jax.devices()[0].platform}, {os.cpu_count()} CPUs"
+    )
+    ds, path = dataset("solid_body_vortex", args.out)
+    phases(ds)
+    compile_times(ds, path)
+    seeds_as_one(ds, args.seeds)
+    if args.targets:
+        to_targets(args.out)
+
+
+if __name__ == "__main__":
+    main()
