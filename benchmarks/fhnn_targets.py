@@ -6,16 +6,18 @@
 2. ``steady_vortex`` with actuation: RMSE(pos) at 5 s — target 1e-4 m; learned m_ax, m_ay, c_l
    within 2 %, c_q(σ) within 2 % over the σ range covered; flow within 1 % relative L2.
 
-Each training run has a wall-clock budget of 10 minutes on a 2-core CPU. The training plans are
-the package's named plans (``fhnn.training.plans.PLANS``, ``fhnn train --plan NAME``): on
-``solid_body_vortex`` ("warmup-polish") a quasi-Newton warm-up of the linear flow and coefficient
-net followed by a quasi-Newton polish of everything (Adam only adds noise there: measured, 4,000 Adam
-steps after the warm-up never got back below the warm-up's validation loss); on ``steady_vortex``
-("adam-polish"; a Lamb–Oseen vortex, which the stream MLP must learn) Adam then a polish — the drag split
-(``c_l`` against ``c_q(σ)``) is fixed only by the data at small σ, where ``½ρA c_q σ`` is a small
-correction to ``c_l``, so it is the last thing the fit settles: measured, Adam 15,000 + polish 400
-left ``c_l`` 7.9 % off, Adam 12,000 + polish 700 (same time) 0.26 %. The σ bands printed at the end
-show where ``c_q`` is and is not pinned by the data. Usage::
+Each training run has a wall-clock budget of 10 minutes on a 2-core CPU. The training plans are the
+package's named plans (``fhnn.training.plans.PLANS``, ``fhnn train --plan NAME``): on
+``solid_body_vortex`` ("warmup-polish", FHNN width 32) a quasi-Newton warm-up of the linear flow and
+coefficient net followed by a quasi-Newton polish of everything (Adam only adds noise there:
+measured, 4,000 Adam steps after the warm-up never got back below the warm-up's validation loss); on
+``steady_vortex`` ("adam-polish"; a Lamb–Oseen vortex, which the stream MLP must learn) Adam then a
+polish — the drag split (``c_l`` against ``c_q(σ)``) is fixed only by the data at small σ, where
+``½ρA c_q σ`` is a small correction to ``c_l``, so it is the last thing the fit settles: measured,
+Adam 15,000 + polish 400 left ``c_l`` 7.9 % off, Adam 12,000 + polish 700 (same time) 0.26 %. The σ
+bands printed at the end show where ``c_q`` is and is not pinned by the data.
+
+Usage::
 
     python benchmarks/fhnn_targets.py [--only solid|steady] [--train JSON] [--model JSON] [--out DIR]
 
@@ -45,10 +47,11 @@ SCENARIO_PLANS = {"solid_body_vortex": "warmup-polish", "steady_vortex": "adam-p
 def train(name: str, folder: Path, options: dict):
     ds, path = dataset(name, folder)
     plan = PLANS[SCENARIO_PLANS[name]]
-    config = RunConfig.from_dict(
-        {"model": options.get("model", {}), "train": {**plan.train.to_dict(), **options.get("train", {})}}
+    given = {f"{part}.{k}": v for part in ("model", "train") for k, v in options.get(part, {}).items()}
+    config = RunConfig().with_settings({**plan.settings("fhnn"), **given})
+    print(
+        f"{name}: training plan {plan.name!r} {config.train.to_dict()} width {config.model.width}", flush=True
     )
-    print(f"{name}: training plan {plan.name!r} {config.train.to_dict()}", flush=True)
     run = Run.create(folder / f"run_{name}", ds, config, data_path=path)
     t0 = time.perf_counter()
     run.train(

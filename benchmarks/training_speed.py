@@ -187,13 +187,22 @@ def seeds_as_one(ds, n: int) -> None:
         f"  {n} sequential steps {seq * 1e3:7.2f} ms; one vmapped step {one * 1e3:7.2f} ms; "
         f"throughput ratio {seq / one:.2f} (target ≥ 2)"
     )
+    # why: a step's time grows in proportion to the pairs it sees, so stacking seeds only stacks work
+    m, o = states[0].model, states[0].opt_state
+    wide = TrainConfig(batch_size=n * cfg.batch_size).only(ADAM_FIELDS)
+    single = seconds_per_call(lambda: adam_step(m, o, jnp.asarray(1), data, scales, keys[0], ac, True), 50)
+    bigger = seconds_per_call(lambda: adam_step(m, o, jnp.asarray(1), data, scales, keys[0], wide, True), 50)
+    print(
+        f"  one model, batch {cfg.batch_size} -> {n * cfg.batch_size}: {single * 1e3:.2f} -> "
+        f"{bigger * 1e3:.2f} ms (×{bigger / single:.2f} for ×{n} the pairs): compute-bound on this CPU"
+    )
 
 
 def to_targets(out: Path) -> None:
     print("4. time to the accuracy targets (benchmarks/fhnn_targets.py, the package's plans)")
     for name, only in (("solid_body_vortex", "solid"), ("steady_vortex", "steady")):
         log = subprocess.run(
-            [sys.executable, "benchmarks/fhnn_targets.py", "--only", only, "--out", str(out)],
+            [sys.executable, "benchmarks/fhnn_targets.py", "--only", only, "--out", str(out / only)],
             capture_output=True,
             text=True,
             check=True,

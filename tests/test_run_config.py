@@ -89,10 +89,14 @@ def test_settings_file_sections_and_flags_that_agree(tmp_path: Path) -> None:
 
 def test_plans_are_typed_training_configurations() -> None:
     assert PLANS["adam"].train == RunConfig().train
-    solid = RunConfig().with_settings(
-        {f"train.{k}": v for k, v in PLANS["warmup-polish"].train.to_dict().items()}
-    )
+    assert PLANS["adam"].settings("fhnn") == {f"train.{k}": v for k, v in RunConfig().train.to_dict().items()}
+    solid = RunConfig().with_settings(PLANS["warmup-polish"].settings("fhnn"))
     assert (solid.train.steps, solid.train.warmup_steps, solid.train.lbfgs_steps) == (0, 400, 400)
+    assert solid.model.width == 32  # the plan's FHNN width ...
+    node = RunConfig(kind="node").with_settings(PLANS["warmup-polish"].settings("node"))
+    assert node.model == RunConfig(kind="node").model  # ... is not a baseline's
+    with pytest.raises(ConfigError, match="unknown model"):
+        PLANS["adam"].settings("fnn")
 
 
 def test_resume_refuses_other_settings_and_runs_are_found_from_anywhere(

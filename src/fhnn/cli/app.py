@@ -243,7 +243,10 @@ def train(
     ] = None,
     plan: Annotated[
         str | None,
-        typer.Option(help=f"Training plan: {'|'.join(PLANS)} (see README) [default: adam]"),
+        typer.Option(
+            help=f"Training plan: {'|'.join(PLANS)} (its training settings and the model settings it "
+            "was measured with; --set wins; see README) [default: adam]"
+        ),
     ] = None,
     steps: Annotated[int | None, typer.Option(help="Adam steps (train.steps) [default: 20000]")] = None,
     seed: Annotated[
@@ -281,9 +284,8 @@ def train(
     MODELS[kind]  # unknown kinds are refused before anything is read
     if "model.ablation" in settings and settings["model.ablation"] != "none" and kind != "fhnn":
         raise ConfigError(f"--ablation applies to fhnn only, not {kind!r}")
-    if plan is not None:  # the plan's training fields, below any train.* setting given
-        plan_train = {f"train.{k}": v for k, v in get_plan(plan).train.to_dict().items()}
-        settings = {**plan_train, **settings}
+    if plan is not None:  # the plan's settings, below any setting given
+        settings = {**get_plan(plan).settings(kind), **settings}
     config = RunConfig().with_settings(settings)  # every setting checked before any work
     check_writable_folder(out if out.is_dir() else out.parent)
     dataset = read_dataset(data)
