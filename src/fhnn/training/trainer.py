@@ -213,7 +213,7 @@ class Trainer:
         self, state: TrainState, callback: Callable[[TrainState, dict[str, float]], None] | None = None
     ) -> TrainState:
         """Quasi-Newton on the model's warm-up parameters; afterwards the model, the best model and
-        a fresh Adam state start from the result. No-op without a warm-up filter."""
+        a fresh Adam state start from the result. No-op for a model without a warm-up part."""
         parts = state.model.warmup()
         if parts is None or self.config.warmup_steps == 0:
             return state
@@ -390,7 +390,7 @@ def adam_step(
 
     def total(m: AbstractModel) -> tuple[Array, dict[str, Array]]:
         terms = loss_terms(m, batch, scales)
-        if not regularize:
+        if not regularize:  # dropped terms are outputs of nothing: XLA removes their computation
             terms = {k: v for k, v in terms.items() if k not in REGULARIZERS}
         reg = sum((terms[k] for k in REGULARIZERS if k in terms), jnp.zeros(()))
         loss = data_loss(terms, config) + weight * reg
