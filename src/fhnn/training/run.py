@@ -3,18 +3,20 @@ checkpointing, resuming and loading.
 
 Run folder layout::
 
-    RUN/run.json        format "fhnn-run", package version, model kind and configuration,
-                        training configuration, the data set (path relative to RUN, SHA-256,
-                        scenario, seed), the data-derived build arguments, step reached, best
-                        validation loss, loss history
+    RUN/run.json        format "fhnn-run", format_version, package version, model kind and
+                        configuration, training configuration, the data set (path relative to
+                        RUN, SHA-256, scenario, seed), the data-derived build arguments, step
+                        reached, best validation loss, loss history, why a guard stopped it
     RUN/model.eqx       weights at the step reached        (equinox.tree_serialise_leaves)
     RUN/best.eqx        weights with the best validation loss
     RUN/opt_state.eqx   optimiser state, for resuming
 
-Everything is written to temporary files and renamed, so a killed run leaves the previous
-checkpoint intact; resuming continues from ``step`` with the same batches, giving the same result
-as an uninterrupted run. The data set is recorded relative to the run folder, so a run and its data
-moved together (a reproduction folder) still find each other, from any working directory.
+A checkpoint's files are replaced together (:func:`fhnn.files.commit_files`), so a run killed at
+any point — even while writing — leaves either its previous checkpoint or the new one, whole, and a
+full disk leaves the previous one; resuming continues from ``step`` with the same batches, giving
+the same result as an uninterrupted run. The data set is recorded relative to the run folder, so a
+run and its data moved together (a reproduction folder) still find each other, from any working
+directory.
 """
 
 from __future__ import annotations
@@ -32,13 +34,15 @@ import numpy as np
 from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
 from fhnn.data.dataset import Dataset, read_dataset
 from fhnn.errors import ConfigError, DataFormatError
-from fhnn.files import atomic_output, check_writable_folder, write_atomic
+from fhnn.files import check_new_folder, commit_files, recover_files
 from fhnn.models.base import AbstractModel
 from fhnn.models.registry import MODELS
 from fhnn.runtime import __version__
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
 RUN_FORMAT = "fhnn-run"
+#: Version of the run folder's layout; a run written by a newer fhnn (a higher version) is refused.
+RUN_FORMAT_VERSION = 1
 
 
 @frozen_config
@@ -234,7 +238,7 @@ class Run:
                 run folder that will be moved beside its data (a reproduction job).
         """
         folder = Path(folder)
-        check_writable_folder(folder if folder.is_dir() else folder.parent)
+        check_new_folder(folder)
         config = config or RunConfig()
         check_trainable(dataset)
         meta: dict[str, Any] = {"data": None}
@@ -346,6 +350,7 @@ class Run:
         self.folder.mkdir(exist_ok=True)
         info = {
             "format": RUN_FORMAT,
+            "format_version": RUN_FORMAT_VERSION,
             "version": __version__,
             "model": self.kind,
             "model_config": self.model_config.to_dict(),
@@ -353,21 +358,27 @@ class Run:
             "build_arguments": self.args,
             "step": self.state.step,
             "skipped_since_record": self.state.skipped,
+            "stopped": self.state.stopped,
             "best_val": self.state.best_val,
             "history": self.state.history,
             **self.meta,
         }
-        _save_leaves(self.folder / "model.eqx", self.state.model)
-        _save_leaves(self.folder / "best.eqx", self.state.best_model)
+        state = self.state
+        writers: dict[str, Callable[[Path], None]] = {
+            "model.eqx": lambda tmp: eqx.tree_serialise_leaves(tmp, state.model),
+            "best.eqx": lambda tmp: eqx.tree_serialise_leaves(tmp, state.best_model),
+        }
         if not polished:
-            _save_leaves(self.folder / "opt_state.eqx", self.state.opt_state)
-        write_atomic(self.folder / "run.json", json.dumps(info, indent=1))
+            writers["opt_state.eqx"] = lambda tmp: eqx.tree_serialise_leaves(tmp, state.opt_state)
+        writers["run.json"] = lambda tmp: tmp.write_text(json.dumps(info, indent=1), encoding="utf-8")
+        commit_files(self.folder, writers)  # all files of a checkpoint change together, or none
         self.saved_step = self.state.step
 
     @classmethod
     def load(cls, folder: str | os.PathLike[str], *, expect_model: str | None = None) -> Run:
         """The run saved in ``folder`` (of kind ``expect_model`` when given), at its last checkpoint."""
         folder = Path(folder)
+        recover_files(folder)  # a checkpoint write a kill interrupted: completed or undone
         info_path = folder / "run.json"
         if not info_path.is_file():
             raise DataFormatError(f"{folder}: not an fhnn run (no run.json)")
@@ -377,6 +388,12 @@ class Run:
             raise DataFormatError(f"{info_path}: not valid JSON ({exc})") from None
         if info.get("format") != RUN_FORMAT:
             raise DataFormatError(f"{info_path}: not an fhnn run (format {info.get('format')!r})")
+        version = info.get("format_version", 1)  # runs written before the field existed are version 1
+        if not isinstance(version, int) or not 1 <= version <= RUN_FORMAT_VERSION:
+            raise DataFormatError(
+                f"{info_path}: unsupported run format_version {version!r} (this fhnn {__version__} reads "
+                f"1 to {RUN_FORMAT_VERSION}; a newer fhnn wrote it)"
+            )
         kind = info.get("model")
         if kind not in MODELS:
             raise DataFormatError(f"{info_path}: unknown model {kind!r}")
@@ -405,6 +422,7 @@ class Run:
             best_val=float(info["best_val"]),
             history=list(info.get("history", [])),
             skipped=float(info.get("skipped_since_record", 0.0)),
+            stopped=info.get("stopped"),
         )
         return run
 
@@ -422,11 +440,6 @@ def _load_leaves(path: Path, like: Any) -> Any:
             f"{path}: checkpoint files missing or incompatible ({kind}: it does not hold this run's "
             "model; retrain, or restore the file)"
         ) from None
-
-
-def _save_leaves(path: Path, tree: Any) -> None:
-    with atomic_output(path) as tmp:
-        eqx.tree_serialise_leaves(tmp, tree)
 
 
 def train(
