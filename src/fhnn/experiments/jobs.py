@@ -82,6 +82,7 @@ def run_model_job(spec: dict[str, Any], data: bytes | str, data_name: str) -> di
             "eval_seconds": eval_seconds,
             "steps": run.state.step,
             "best_val": run.state.best_val,
+            "stopped": run.state.stopped,
             "spec_metrics": ev["horizons"],
             "paper_metrics": ev["horizons_other"],
             "diverged": ev["diverged"],

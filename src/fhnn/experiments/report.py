@@ -153,6 +153,13 @@ def _timings(jobs: list[ModelJob], results: dict[str, dict]) -> dict[str, Any]:
         "jobs": len(jobs),
         "job_seconds_total": float(sum(sum(v) for v in per_model.values())),
         "mean_job_seconds": {k: float(np.mean(v)) for k, v in per_model.items()},
+        # jobs a training guard ended before their plan did (TrainConfig.stop_rising): their best
+        # model is what the tables score
+        "stopped_early": {
+            j.label: f"step {results[j.id]['steps']}: {results[j.id]['stopped']}"
+            for j in jobs
+            if results[j.id].get("stopped")
+        },
     }
 
 
@@ -212,6 +219,8 @@ def _markdown(
     lines += ["## Versions", ""] + [f"- {k}: {v}" for k, v in versions.items()]
     lines += ["", "## Mean time per job [s] (train + evaluate)", ""]
     lines += [f"- {MODEL_NAMES.get(k, k)}: {v:.1f}" for k, v in timings["mean_job_seconds"].items()]
+    lines += ["", "## Jobs stopped early (their best model is scored)", ""]
+    lines += [f"- {k}: {v}" for k, v in timings["stopped_early"].items()] or ["- none"]
     return "\n".join(lines) + "\n"
 
 
@@ -274,5 +283,7 @@ def _html(
         f"<tr><td>{e(MODEL_NAMES.get(k, k))}</td><td>{v:.1f} s</td></tr>"
         for k, v in timings["mean_job_seconds"].items()
     ]
-    parts.append("</table></body></html>")
+    parts.append("</table><h2>Jobs stopped early (their best model is scored)</h2><ul>")
+    parts += [f"<li>{e(k)}: {e(v)}</li>" for k, v in timings["stopped_early"].items()] or ["<li>none</li>"]
+    parts.append("</ul></body></html>")
     return "\n".join(parts)

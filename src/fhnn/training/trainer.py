@@ -35,6 +35,7 @@ phase from the last checkpoint.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -75,6 +76,11 @@ class TrainConfig(Config):
         lbfgs_steps: quasi-Newton polish iterations after Adam (0: none).
         lbfgs_pairs: training pairs (a seeded subset) in the quasi-Newton phases.
         lbfgs_memory: curvature pairs kept by L-BFGS.
+        stop_rising: the Adam phase ends early once the validation loss has risen at this many
+            validations in a row (0: never); the polish, if any, then starts from the best model,
+            as it always does. Six rises in a row — seven
+            increasing values — happen by chance with probability 1/5040 in a loss that only
+            fluctuates, so the guard catches a diverging or overfitting run, not noise.
     """
 
     config_name = "training"
@@ -95,12 +101,13 @@ class TrainConfig(Config):
     lbfgs_steps: int = 0
     lbfgs_pairs: int = 8192
     lbfgs_memory: int = 100
+    stop_rising: int = 6
 
     def validate(self) -> None:
         check_positive(self, "batch_size", "lr", "lr_decay", "val_every", "val_pairs", "lbfgs_pairs")
         check_positive(self, "lbfgs_memory")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
-        check_nonnegative(self, "steps", "warmup_steps")
+        check_nonnegative(self, "steps", "warmup_steps", "stop_rising")
         if any(not 0 < b < 1 for b in self.lr_boundaries):
             raise ConfigError(f"training: lr_boundaries must lie in (0, 1), got {self.lr_boundaries}")
 
@@ -161,7 +168,8 @@ def data_loss(terms: dict[str, Array], config: TrainConfig) -> Array:
 @dataclass
 class TrainState:
     """Everything needed to continue training: model, optimiser state, step, best model, history,
-    and the Adam steps skipped (non-finite loss or gradient) since the last history record."""
+    the Adam steps skipped (non-finite loss or gradient) since the last history record, and why
+    training stopped early (``None``: it did not; see :meth:`Trainer.run`)."""
 
     model: AbstractModel
     opt_state: Any
@@ -170,6 +178,26 @@ class TrainState:
     best_val: float
     history: list[dict[str, float]]
     skipped: float = 0.0
+    stopped: str | None = None
+
+
+def stop_reason(history: list[dict[str, Any]], config: TrainConfig) -> str | None:
+    """Why Adam must stop after the last record of ``history`` (``None``: it goes on): every step
+    since the previous record was skipped (a non-finite loss or gradient everywhere: the model can
+    no longer move), or the validation loss rose at ``config.stop_rising`` validations in a row."""
+    adam = [r for r in history if "phase" not in r]
+    if not adam:
+        return None
+    last = adam[-1]
+    previous = adam[-2]["step"] if len(adam) > 1 else 0
+    if last.get("skipped_steps", 0.0) >= last["step"] - previous > 0:
+        return f"every Adam step from {previous} to {last['step']} was skipped (non-finite loss or gradient)"
+    n = config.stop_rising
+    vals = [r["val_total"] for r in adam[-(n + 1) :]]
+    if n and len(vals) == n + 1 and all(b > a for a, b in itertools.pairwise(vals)):
+        steps = f"steps {adam[-n - 1]['step']}–{last['step']}"
+        return f"the validation loss rose at {n} validations in a row ({steps})"
+    return None
 
 
 class Trainer:
@@ -268,15 +296,24 @@ class Trainer:
         model: AbstractModel,
         record: dict[str, Any],
         callback: Callable[[TrainState, dict[str, float]], None] | None,
+        *,
+        stop: TrainConfig | None = None,
     ) -> None:
         """Validate ``model``, log ``record`` with the validation terms, keep the best model,
-        advance ``state`` to ``record["step"]`` and call ``callback``."""
+        advance ``state`` to ``record["step"]`` and call ``callback``. Under an Adam configuration
+        ``stop`` (when given) whose guard fires (:func:`stop_reason`), ``state.stopped`` says why
+        and ``state.step`` jumps to the end of the Adam phase — before ``callback`` saves the
+        checkpoint, so a resumed run goes on to the polish, not back into Adam."""
         val = self.validate(model)
         record.update({f"val_{k}": v for k, v in val.items()})
         state.history.append(record)
         if val["total"] < state.best_val:
             state.best_val, state.best_model = val["total"], model
         state.model, state.step = model, record["step"]
+        reason = None if stop is None else stop_reason(state.history, stop)
+        if stop is not None and reason is not None:
+            state.stopped = f"Adam stopped at step {record['step']} of {stop.steps}: {reason}"
+            state.step = stop.steps
         if callback is not None:
             callback(state, record)
 
@@ -340,8 +377,10 @@ class Trainer:
                 record["lambda_flow"] = float(cfg.flow_weight(jnp.asarray(i)))
                 skipped = jnp.zeros(())
                 state.opt_state, state.skipped = opt_state, 0.0
-                self._record(state, model, record, callback)
+                self._record(state, model, record, callback, stop=cfg)
                 saved = time.monotonic()
+                if state.stopped is not None:  # the Adam phase is over (see _record)
+                    return state
             elif checkpoint is not None and time.monotonic() - saved >= checkpoint_seconds:
                 state.model, state.opt_state, state.step, state.skipped = (
                     model,
