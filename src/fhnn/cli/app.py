@@ -7,6 +7,7 @@ Every error caused by input (a bad option, parameter, file) is printed as one li
 from __future__ import annotations
 
 import json
+import os
 import signal
 import sys
 from pathlib import Path
@@ -23,7 +24,7 @@ from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
-from fhnn.files import check_output_path, check_writable_folder
+from fhnn.files import check_new_folder, check_output_path
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
 from fhnn.runtime import __version__, default_cache_dir, use_compilation_cache
@@ -70,6 +71,26 @@ def _main(
     Compiled programs are cached in $FHNN_JAX_CACHE (default ~/.cache/fhnn/jax; "off": no cache).
     """
     use_compilation_cache(default_cache_dir())
+
+
+#: Test hook of the fault tests (tests/test_faults.py): ``PHASE:N:SIGNAL`` (e.g. ``adam:40:KILL``)
+#: makes a command send itself SIGNAL once its progress reaches N in PHASE — a simulated split
+#: ("train", …), a training phase ("warmup", "adam", "lbfgs") or a reproduction's "jobs" /
+#: "report" — so a kill lands in a chosen phase. Unset in normal use.
+FAULT_ENV = "FHNN_FAULT_AT"
+
+
+def _fault_point(phase: str, done: int) -> None:
+    spec = os.environ.get(FAULT_ENV)
+    if spec:
+        where, at, name = spec.split(":")
+        if where == phase and done >= int(at):
+            os.kill(os.getpid(), getattr(signal, f"SIG{name}"))
+
+
+class Interrupted(Exception):
+    """Ctrl-C or SIGTERM stopped a command that keeps its work (train, reproduce): the message
+    says what was kept; the exit status is 130."""
 
 
 #: ``--config FILE`` of the commands that take settings.
@@ -170,6 +191,7 @@ def simulate(
             if label not in tasks:
                 tasks[label] = bar.add_task(label, total=total)
             bar.update(tasks[label], completed=done)
+            _fault_point(label, done)
 
         dataset = simulate_dataset(sc, config, progress=progress)
     write_dataset(dataset, output)
@@ -287,7 +309,7 @@ def train(
     if plan is not None:  # the plan's settings, below any setting given
         settings = {**get_plan(plan).settings(kind), **settings}
     config = RunConfig().with_settings(settings)  # every setting checked before any work
-    check_writable_folder(out if out.is_dir() else out.parent)
+    check_new_folder(out)
     dataset = read_dataset(data)
     if (out / "run.json").exists():
         run = Run.load(out, expect_model=kind if "kind" in settings else None)
@@ -305,6 +327,8 @@ def train(
                 "resume it, or train into a new folder"
             )
         if run.finished:
+            if run.state.stopped is not None:
+                err.print(_stopped_text(run), highlight=False, soft_wrap=True)
             stdout.print(
                 f"{out} has finished training ({run.state.step} steps); nothing to do. To train further, "
                 "give a larger --steps with --extend.",
@@ -337,8 +361,8 @@ def train(
 
         def stepped(phase: str, step: int) -> None:
             bar.update(task, completed=step, phase=names.get(phase, phase))
+            _fault_point(phase, step)
 
-        signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops cleanly, like Ctrl-C
         try:
             run.train(dataset, callback=progress, on_step=stepped)
         except KeyboardInterrupt:
@@ -348,15 +372,27 @@ def train(
                 if run.saved_step is not None
                 else "nothing was saved yet"
             )
-            err.print(
-                f"interrupted: {kept}; run the same command again to resume", highlight=False, soft_wrap=True
-            )
-            raise typer.Exit(130) from None
+            raise Interrupted(f"interrupted: {kept}; run the same command again to resume") from None
+    if run.state.stopped is not None:  # said even with -q: the run ended before its plan did
+        err.print(_stopped_text(run), highlight=False, soft_wrap=True)
     if not quiet:
         best = run.state.best_val
         stdout.print(
             f"trained {run.kind} for {run.state.step} steps; best validation loss {best:.3e}; saved to {out}"
         )
+
+
+def _stopped_text(run: Any) -> str:
+    """The line saying that a guard stopped ``run`` early, and which model it kept."""
+    best = min(
+        (r for r in run.state.history if r.get("val_total") == run.state.best_val),
+        key=lambda r: r["step"],
+        default={"step": "?"},
+    )
+    return (
+        f"{run.state.stopped}; the result is the best model (validation loss {run.state.best_val:.3e}, "
+        f"step {best['step']})"
+    )
 
 
 #: Horizons [s] ``fhnn evaluate`` reports when none are given (those the trajectories allow).
@@ -554,7 +590,6 @@ def reproduce(
     check_output_folder(out)
     n_data, n_jobs = (len(x) for x in build_grid(config))
     err.print(f"reproduce: {n_data} data sets, {n_jobs} training jobs ({config.seeds} seed(s)) -> {out}")
-    signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops cleanly, like Ctrl-C
     with Progress(
         TextColumn("{task.fields[phase]:6s}"),
         BarColumn(),
@@ -568,13 +603,14 @@ def reproduce(
 
         def progress(phase: str, done: int, total: int, last: str) -> None:
             bar.update(task, completed=done, total=total, phase=phase, last=last)
+            _fault_point(phase, done)
 
         try:
             summary = run_reproduction(config, out, workers=workers, ray_address=ray, progress=progress)
         except KeyboardInterrupt:
             bar.stop()
-            err.print("interrupted: finished jobs are kept; run the same command again to resume")
-            raise typer.Exit(130) from None
+            kept = "interrupted: finished jobs are kept; run the same command again to resume"
+            raise Interrupted(kept) from None
     ran = (
         f"{summary.data_run} of {summary.data_total} data sets and "
         f"{summary.jobs_run} of {summary.jobs_total} training jobs run"
@@ -591,6 +627,8 @@ def _load_run(run_dir: Path, data: Path | None, *, fhnn_only: bool = False) -> t
     run = Run.load(run_dir)
     if fhnn_only and run.kind != "fhnn":
         raise ConfigError(f"inspect needs an fhnn run; a {run.kind!r} model has no flow or coefficients")
+    if run.state is not None and run.state.stopped is not None:
+        err.print(f"note: {_stopped_text(run)}", highlight=False, soft_wrap=True)
     return run, read_dataset(data) if data is not None else run.dataset()
 
 
@@ -640,8 +678,12 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``fhnn`` console script."""
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops cleanly, like Ctrl-C
     try:
         code = app(args=argv, prog_name="fhnn", standalone_mode=False)
+    except Interrupted as exc:  # train and reproduce say what they kept
+        err.print(str(exc), highlight=False, markup=False, soft_wrap=True)
+        sys.exit(130)
     except typer.Abort:
         _fail("aborted")
     except _USAGE_ERRORS as exc:
@@ -650,6 +692,8 @@ def main(argv: list[str] | None = None) -> None:
         _fail(str(exc))
     except OSError as exc:
         _fail(f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc))
+    if code == 130:  # Typer's answer to Ctrl-C (SIGINT, or SIGTERM below) in any other command
+        err.print("interrupted: files are written whole or not at all", highlight=False)
     sys.exit(code if isinstance(code, int) else 0)
 
 

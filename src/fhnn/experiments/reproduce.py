@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -26,8 +27,8 @@ from fhnn.errors import ConfigError, DataFormatError
 from fhnn.experiments.executors import Task, check_workers, default_workers, run_local, run_ray
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
 from fhnn.experiments.report import build_report
-from fhnn.files import check_writable_folder, write_atomic, write_folder_atomic
-from fhnn.runtime import __version__
+from fhnn.files import check_new_folder, folder_lock, write_atomic, write_folder_atomic
+from fhnn.runtime import __version__, default_cache_dir
 
 FORMAT = "fhnn-reproduction"
 #: ``progress(phase, done, total, last)``: phase "jobs" (data sets and training jobs still to do)
@@ -50,13 +51,12 @@ class Summary:
 
 def check_output_folder(out: Path) -> None:
     """``out`` may be new, empty, or a reproduction folder; anything else is refused."""
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"output '{out}' exists and is not a folder")
     try:
-        check_writable_folder(out if out.is_dir() else out.parent)
+        check_new_folder(out)
     except DataFormatError as exc:  # an option's value, not a data file: a configuration error
         raise ConfigError(str(exc)) from None
-    if out.is_dir() and any(out.iterdir()) and not (out / "reproduce.json").is_file():
+    held = [p for p in out.iterdir() if p.name != ".lock"] if out.is_dir() else []
+    if held and not (out / "reproduce.json").is_file():
         raise ConfigError(f"output folder '{out}' is not empty and holds no reproduction (no reproduce.json)")
 
 
@@ -68,20 +68,40 @@ def reproduce(
     ray_address: str | None = None,
     progress: ProgressFn | None = None,
 ) -> Summary:
-    """Run every job the report needs that is not yet done, then build the report."""
+    """Run every job the report needs that is not yet done, then build the report. A second
+    process on the same folder is refused while this one runs (:func:`fhnn.files.folder_lock`)."""
     started = time.perf_counter()
     out = Path(out)
     check_output_folder(out)
     workers = default_workers() if workers is None else workers
     check_workers(workers)
     datasets, jobs = build_grid(config)
-    for sub in ("data", "jobs", "cache"):
+    out.mkdir(exist_ok=True)
+    with folder_lock(out, "fhnn reproduce"):
+        return _reproduce(config, out, datasets, jobs, workers, ray_address, progress, started)
+
+
+def _reproduce(
+    config: ReproduceConfig,
+    out: Path,
+    datasets: list[DataJob],
+    jobs: list[ModelJob],
+    workers: int,
+    ray_address: str | None,
+    progress: ProgressFn | None,
+    started: float,
+) -> Summary:
+    for stale in out.glob("jobs/.*.tmp"):  # the temporary folder of a job a kill interrupted
+        shutil.rmtree(stale, ignore_errors=True)
+    for sub in ("data", "jobs"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     write_atomic(
         out / "reproduce.json",
         json.dumps({"format": FORMAT, "version": __version__, "config": config.to_dict()}, indent=1).encode(),
     )
-    cache_dir = str((out / "cache" / "jax").resolve())
+    # the commands' compilation cache (fhnn.runtime.default_cache_dir): a job compiled by an earlier
+    # reproduction, a killed one or a plain `fhnn train` of the same shapes is loaded, not compiled
+    cache_dir = default_cache_dir()
     report = progress or (lambda *a: None)
 
     def run(tasks: list[Task], on_done: Callable[[Task, object], None]) -> None:
