@@ -16,6 +16,7 @@ import tempfile
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, settings
 
 import fhnn  # noqa: F401  (enables float64)
 from fhnn.data.dataset import Dataset
@@ -27,6 +28,16 @@ _CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
 atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
 use_compilation_cache(_CACHE)
 os.environ[CACHE_ENV] = _CACHE
+
+# Property tests (tests/test_properties.py): 200 examples per property by default; the nightly
+# profile draws 5,000 (HYPOTHESIS_PROFILE=nightly). No deadline: the first example compiles.
+settings.register_profile(
+    "default", max_examples=200, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.register_profile(
+    "nightly", max_examples=5000, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 #: Small data sets: every split present, short trajectories, fast to simulate.
 SMALL = dict(n_traj=6, duration=3.0, test_duration=6.0)

@@ -5,11 +5,7 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import stat
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -129,42 +125,6 @@ def test_a_corrupt_checkpoint_file_is_named(trained: Path, tmp_path: Path) -> No
         DataFormatError, match=r"best.eqx: checkpoint files missing or incompatible \(no such file\)"
     ):
         Run.load(copy)
-
-
-def _fhnn(*args: str) -> list[str]:
-    return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
-
-
-def test_a_kill_before_the_first_validation_resumes_to_the_same_bytes(
-    data_file: Path, tmp_path: Path
-) -> None:
-    args = ["--steps", "400", "--set", "model.width=8", "--set", "train.val_every=400", "-q"]
-    env = {**os.environ, "FHNN_CHECKPOINT_SECONDS": "0.3", "PYTHONUNBUFFERED": "1"}
-    straight = subprocess.run(_fhnn("train", str(data_file), "-o", str(tmp_path / "a"), *args), env=env)
-    assert straight.returncode == 0
-    out = tmp_path / "b"
-    proc = subprocess.Popen(
-        _fhnn("train", str(data_file), "-o", str(out), *args), env=env, stderr=subprocess.PIPE, text=True
-    )
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and not (out / "run.json").exists():
-        assert proc.poll() is None, proc.stderr.read()
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGINT)
-    _, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 130, stderr
-    step = json.loads((out / "run.json").read_text())["step"]
-    assert 0 < step < 400  # checkpointed between validations
-    assert f"interrupted: {out} keeps the checkpoint of step" in stderr
-    assert "run the same command again to resume" in stderr
-    resumed = subprocess.run(
-        _fhnn("train", str(data_file), "-o", str(out), *args), env=env, capture_output=True, text=True
-    )
-    assert resumed.returncode == 0, resumed.stderr
-    for name in ("model.eqx", "best.eqx", "opt_state.eqx"):
-        assert (out / name).read_bytes() == (tmp_path / "a" / name).read_bytes(), name
-    a, b = (json.loads((f / "run.json").read_text()) for f in (tmp_path / "a", out))
-    assert a["history"] == b["history"] and a["step"] == b["step"] == 400
 
 
 # --- the force models see is the recorded force -----------------------------------------------------

@@ -1,0 +1,181 @@
+"""The bad-input matrix: every command, given a bad parameter, option, file or folder, ends with one
+line naming the problem (``error: …``), exit status 2, and the files it was pointed at — data sets,
+runs, reproduction folders — exactly as they were (same names, bytes and modes, nothing added)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from fhnn.cli.app import main
+from fhnn.data.dataset import write_dataset
+
+from .conftest import small_dataset
+
+
+@pytest.fixture(scope="module")
+def ws(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A workspace holding a good data set, trained runs and one bad file or run per case."""
+    ws = tmp_path_factory.mktemp("ws")
+    data = write_dataset(
+        small_dataset("steady_vortex", n_traj=6, duration=2.0, test_duration=3.0), ws / "d.h5"
+    )
+    for name, model in (("run", "fhnn"), ("sindy", "sindy")):
+        with pytest.raises(SystemExit) as info:
+            main(["train", str(data), "-o", str(ws / name), "--model", model, "--steps", "4", "-q"])
+        assert info.value.code == 0
+    raw = data.read_bytes()
+    (ws / "cut.h5").write_bytes(raw[: len(raw) // 3])
+    (ws / "text.h5").write_text("time,x,y\n0,1,2\n")
+    with h5py.File(ws / "foreign.h5", "w") as f:
+        f["x"] = 1
+
+    def edited(name: str, edit) -> None:
+        shutil.copy(data, ws / name)
+        with h5py.File(ws / name, "r+") as f:
+            edit(f)
+
+    edited("nodataset.h5", lambda f: f["train"].__delitem__("states"))
+    edited(
+        "misshaped.h5",
+        lambda f: (f["val"].__delitem__("forces"), f["val"].create_dataset("forces", data=np.zeros((2, 3)))),
+    )
+    edited("nan.h5", lambda f: f["train"]["states"].__setitem__((0, 3, 1), np.nan))
+    edited("inf.h5", lambda f: f["test"]["forces"].__setitem__((0, 2, 0), np.inf))
+    edited("newer.h5", lambda f: f.attrs.__setitem__("format_version", 9))
+    for name, change in (
+        ("newer_run", lambda d: (d / "run.json", lambda i: {**i, "format_version": 7})),
+        ("corrupt_run", None),
+    ):
+        shutil.copytree(ws / "run", ws / name)
+        if change is not None:
+            path, edit = change(ws / name)
+            path.write_text(json.dumps(edit(json.loads(path.read_text()))))
+    (ws / "corrupt_run" / "best.eqx").write_bytes(b"\0garbage")
+    (ws / "afile").write_text("mine")
+    (ws / "locked").mkdir()
+    (ws / "bad.toml").write_text("[train]\nlr = \n")
+    (ws / "unknown.toml").write_text("[train]\nlearning_rate = 1e-3\n")
+    return ws
+
+
+def _snapshot(folder: Path) -> dict[str, tuple[str, int]]:
+    """Every file and folder under ``folder``: its SHA-256 (folders: "") and mode."""
+    out = {}
+    for path in sorted(folder.rglob("*")):
+        digest = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else ""
+        out[str(path.relative_to(folder))] = (digest, path.stat().st_mode)
+    return out
+
+
+S = ["simulate", "steady_vortex"]
+T = ["train", "{ws}/d.h5"]
+#: (arguments — ``{ws}`` is the workspace —, text the one-line message must contain)
+CASES = [
+    # simulate: parameters, options, output paths
+    ([*S, "-o", "{ws}/n.h5", "-p", "gamma=nan"], "gamma must be finite, got 'nan'"),
+    ([*S, "-o", "{ws}/n.h5", "-p", "gamma=inf"], "gamma must be finite, got 'inf'"),
+    ([*S, "-o", "{ws}/n.h5", "-p", "gamma=abc"], "gamma"),
+    ([*S, "-o", "{ws}/n.h5", "-p", "mass=-2"], "mass must be > 0, got -2.0"),
+    ([*S, "-o", "{ws}/n.h5", "-p", "gama=2"], "unknown parameter 'gama' for scenario 'steady_vortex'"),
+    ([*S, "-o", "{ws}/n.h5", "--dt", "0"], "simulation: dt must be > 0, got 0.0"),
+    ([*S, "-o", "{ws}/n.h5", "--dt", "-1e-3"], "simulation: dt must be > 0, got -0.001"),
+    ([*S, "-o", "{ws}/n.h5", "--dt", "nan"], "dt must be"),
+    ([*S, "-o", "{ws}/n.h5", "--n-traj", "0"], "simulation: n_traj must be >= 1, got 0"),
+    ([*S, "-o", "{ws}/n.h5", "--duration", "inf"], "duration must be finite"),
+    ([*S, "-o", "{ws}/n.h5", "--duration", "-3"], "duration must be > 0"),
+    ([*S, "-o", "{ws}/n.h5", "--seed", "-1"], "seed must be >= 0, got -1"),
+    ([*S, "-o", "{ws}/n.h5", "--obs-noise", "-0.1"], "obs_noise must be >= 0"),
+    (["simulate", "vortex", "-o", "{ws}/n.h5"], "unknown scenario 'vortex'"),
+    ([*S, "-o", "{ws}/missing/n.h5"], "output folder '{ws}/missing' does not exist"),
+    ([*S, "-o", "{ws}/run"], "output path '{ws}/run' is a folder"),
+    ([*S, "-o", "{ws}/afile/n.h5"], "output folder '{ws}/afile' is a file, not a folder"),
+    ([*S, "-o", "{ws}/locked/n.h5"], "output folder '{ws}/locked' is not writable"),
+    # info: files
+    (["info", "{ws}/absent.h5"], "{ws}/absent.h5: no such file"),
+    (["info", "{ws}/cut.h5"], "not a readable HDF5 file"),
+    (["info", "{ws}/text.h5"], "not a readable HDF5 file"),
+    (["info", "{ws}/foreign.h5"], "not an fhnn data set"),
+    (["info", "{ws}/nodataset.h5"], "missing dataset /train/states"),
+    (["info", "{ws}/misshaped.h5"], "/val/forces has shape (2, 3), expected"),
+    (["info", "{ws}/nan.h5"], "/train/states has 1 NaN or infinite value(s)"),
+    (["info", "{ws}/inf.h5"], "/test/forces has 1 NaN or infinite value(s)"),
+    (["info", "{ws}/newer.h5"], "unsupported format_version 9"),
+    (["info", "{ws}/run"], "is a folder, not a data file"),
+    # train: data, settings, output, existing runs
+    (["train", "{ws}/nan.h5", "-o", "{ws}/r"], "/train/states has 1 NaN or infinite value(s)"),
+    (["train", "{ws}/cut.h5", "-o", "{ws}/r"], "not a readable HDF5 file"),
+    ([*T, "-o", "{ws}/r", "--steps", "-5"], "steps must be >= 0, got -5"),
+    ([*T, "-o", "{ws}/r", "--set", "train.lr=-1"], "lr must be > 0, got -1.0"),
+    ([*T, "-o", "{ws}/r", "--set", "train.lr=nan"], "lr must be"),
+    ([*T, "-o", "{ws}/r", "--set", "model.width=0"], "width must be > 0, got 0"),
+    (
+        [*T, "-o", "{ws}/r", "--set", "width=8"],
+        "unknown setting 'width' for run (did you mean 'model.width'?)",
+    ),
+    ([*T, "-o", "{ws}/r", "--model", "gru"], "gru"),
+    ([*T, "-o", "{ws}/r", "--config", "{ws}/bad.toml"], "bad.toml"),
+    ([*T, "-o", "{ws}/r", "--config", "{ws}/unknown.toml"], "unknown setting 'train.learning_rate'"),
+    ([*T, "-o", "{ws}/missing/r"], "output folder '{ws}/missing' does not exist"),
+    ([*T, "-o", "{ws}/afile"], "output '{ws}/afile' exists and is not a folder"),
+    ([*T, "-o", "{ws}/locked/r"], "output folder '{ws}/locked' is not writable"),
+    ([*T, "-o", "{ws}/run", "--model", "node"], "checkpoint is a 'fhnn' model, not 'node'"),
+    ([*T, "-o", "{ws}/run", "--set", "train.lr=1e-2"], "holds a run started with other settings"),
+    ([*T, "-o", "{ws}/newer_run"], "unsupported run format_version 7"),
+    ([*T, "-o", "{ws}/corrupt_run"], "{ws}/corrupt_run/best.eqx: checkpoint files missing or incompatible"),
+    ([*T, "-o", "{ws}/run", "--extend", "--steps", "2"], "give --steps larger than its 4"),
+    # evaluate
+    (["evaluate", "{ws}/run", "--horizons", "1,60"], "60"),
+    (["evaluate", "{ws}/run", "--horizons", "abc"], "abc"),
+    (["evaluate", "{ws}/run", "--horizons", "-1"], "-1"),
+    (["evaluate", "{ws}/run", "--split", "training"], "--split must be one of train, val, test"),
+    (["evaluate", "{ws}/d.h5"], "not an fhnn run (no run.json)"),
+    (["evaluate", "{ws}/absent"], "not an fhnn run (no run.json)"),
+    (["evaluate", "{ws}/corrupt_run"], "{ws}/corrupt_run/best.eqx: checkpoint files missing or incompatible"),
+    (["evaluate", "{ws}/newer_run"], "unsupported run format_version 7"),
+    (["evaluate", "{ws}/run", "{ws}/foreign.h5"], "not an fhnn data set"),
+    # inspect
+    (["inspect", "{ws}/sindy"], "inspect needs an fhnn run; a 'sindy' model has no flow or coefficients"),
+    (["inspect", "{ws}/absent"], "not an fhnn run (no run.json)"),
+    (["inspect", "{ws}/run", "{ws}/nan.h5"], "/train/states has 1 NaN or infinite value(s)"),
+    # reproduce
+    (["reproduce", "--quick", "-o", "{ws}/rep", "--seeds", "0"], "seeds must be > 0, got 0"),
+    (["reproduce", "--quick", "-o", "{ws}/rep", "--workers", "0"], "workers"),
+    (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "models=fhnn,gru"], "unknown name 'gru' in models"),
+    (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "data.n_traj=2"], "n_traj must be >= 3"),
+    (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "data.test_duration=5"], "test_duration must cover"),
+    (["reproduce", "--quick", "-o", "{ws}/afile"], "output '{ws}/afile' exists and is not a folder"),
+    (["reproduce", "--quick", "-o", "{ws}"], "is not empty and holds no reproduction"),
+    (["reproduce", "--quick", "-o", "{ws}/missing/rep"], "output folder '{ws}/missing' does not exist"),
+    (["reproduce", "--quick", "-o", "{ws}/locked/rep"], "output folder '{ws}/locked' is not writable"),
+]
+
+
+@pytest.mark.parametrize(("args", "message"), CASES, ids=[" ".join(a[:1] + a[-2:]) for a, _ in CASES])
+def test_bad_input_is_one_line_exit_2_and_changes_nothing(
+    ws: Path, args: list[str], message: str, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    locked = ws / "locked"
+    real_access = os.access  # root may write anywhere: the read-only folder is simulated
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == locked else real_access(p, mode))
+    before = _snapshot(ws)
+    with pytest.raises(SystemExit) as info:
+        main([a.format(ws=ws) for a in args])
+    err = capsys.readouterr().err
+    assert info.value.code == 2, err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert message.format(ws=ws) in err, err
+    assert _snapshot(ws) == before
+
+
+def test_the_matrix_covers_every_command_with_forty_cases() -> None:
+    commands = {args[0] for args, _ in CASES}
+    assert commands == {"simulate", "info", "train", "evaluate", "inspect", "reproduce"}
+    assert len(CASES) >= 40
