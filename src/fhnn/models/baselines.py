@@ -1,18 +1,25 @@
 """Baselines behind the same vector-field interface (SPEC §4.2).
 
 - :class:`NeuralODE` (Chen et al. 2018): an MLP ``(s, F_ext) → ṡ``, all four components.
-- :class:`HNN` (Greydanus et al. 2019): ``H_θ(q, p)``, ``q = (x, y)``, ``p = v``;
-  ``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext``.
+- :class:`HNN` (Greydanus et al. 2019): ``H_θ(q, p)``, ``q = (x, y)``, ``p = M_θ ⊙ v`` with a
+  learned positive diagonal inertia ``M_θ`` [kg] started at the body's known dry mass ``M``;
+  ``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext``. (With ``p = v``, as SPEC once wrote, a force in N is
+  added to an acceleration: a response ``M + m_a`` = 22–30 times too strong for the scenarios'
+  bodies.) ``M_θ`` trains towards the effective mass ``M + m_a``.
 - :class:`LNN` (Cranmer et al. 2020): ``L_θ(q, q̇)``;
   ``q̈ = (∇q̇∇q̇ᵀL)⁻¹ [∇q L − (∇q∇q̇ᵀL) q̇ + F_ext]`` — a linear solve, no explicit inverse and no
   conditioning fix: its ill-conditioning is part of what the comparison shows. It is trained on
   the derivative loss only, as in the original: through the four stages of an RK4 step the
   ``q̇``-Hessian of a fresh network passes through singular matrices and the step loss is NaN.
 - :class:`DissipativeHNN` (after Sosanya & Greydanus 2022): ``H_θ`` plus a learned Rayleigh
-  dissipation function ``D = ½ pᵀ R_θ(q) p`` with ``R_θ ⪰ 0``; ``ṗ = −∂H/∂q − ∂D/∂p + F_ext``.
+  dissipation function ``D = ½ pᵀ R_θ(q) p`` with ``R_θ ⪰ 0``; ``ṗ = −∂H/∂q − ∂D/∂p + F_ext``
+  with the HNN's ``p = M_θ ⊙ v``.
 
 Inputs are standardised with the training data's statistics (stored with the model), so every
 network sees O(1) inputs; the scalar functions ``H``, ``L``, ``D`` are otherwise unconstrained.
+``H`` and ``L`` are in joules (their scale includes the known dry mass ``M``), so a fresh HNN or
+LNN responds to a force as a body of mass ``M`` would; the LNN's ``q̇``-Hessian (its mass matrix)
+then trains freely.
 """
 
 from __future__ import annotations
@@ -78,23 +85,39 @@ class NeuralODE(AbstractVectorField):
 
 
 class HNN(AbstractVectorField):
-    """``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext`` with ``H = energy_scale · MLP(standardised q, p)``."""
+    """``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext`` with ``p = M_θ ⊙ v``, the inertia
+    ``M_θ = mass · exp(log_inertia)`` [kg] ``(2,)`` learned, and ``H = energy_scale · MLP(ξ)`` [J],
+    ``ξ`` the standardised ``(q, p / mass)`` (a fixed scaling, so the inputs stay O(1))."""
 
     mlp: eqx.nn.MLP
     norm: Standardiser
+    log_inertia: Array
     energy_scale: float = eqx.field(static=True)
+    mass: float = eqx.field(static=True)
 
-    def hamiltonian(self, s: Array) -> Array:
-        return self.energy_scale * self.mlp(self.norm.state(s))[0]
+    def inertia(self) -> Array:
+        """``M_θ`` [kg], shape ``(2,)``: the learned effective mass on each axis."""
+        return self.mass * jnp.exp(self.log_inertia)
+
+    def hamiltonian(self, q: Array, p: Array) -> Array:
+        """``H(q, p)`` [J] at positions ``q`` [m] and momenta ``p`` [kg·m/s], ``(2,)`` each."""
+        xi = self.norm.state(jnp.concatenate([q, p / self.mass]))
+        return self.energy_scale * self.mlp(xi)[0]
+
+    def momentum_rates(self, state: Array) -> tuple[Array, Array, Array]:
+        """``(q̇, −∂H/∂q, p)`` at a state ``(q, v)``."""
+        p = self.inertia() * state[2:]
+        dq, dp = jax.grad(self.hamiltonian, argnums=(0, 1))(state[:2], p)
+        return dp, -dq, p
 
     def __call__(self, state: Array, t: Array, force: Array) -> Array:
-        g = jax.grad(self.hamiltonian)(state)
-        return jnp.concatenate([g[2:], -g[:2] + force])
+        qdot, pdot, _ = self.momentum_rates(state)
+        return jnp.concatenate([qdot, (pdot + force) / self.inertia()])
 
 
 class DissipativeHNN(AbstractVectorField):
     """HNN plus a Rayleigh dissipation function ``D = ½ pᵀ R(q) p``, ``R = A Aᵀ ⪰ 0``:
-    ``ṗ = −∂H/∂q − R(q) p + F_ext``. ``A(q)`` is lower-triangular, from an MLP of ``q``."""
+    ``ṗ = −∂H/∂q − R(q) p + G ⊙ F_ext``. ``A(q)`` is lower-triangular, from an MLP of ``q``."""
 
     hnn: HNN
     dissipation: eqx.nn.MLP
@@ -108,8 +131,9 @@ class DissipativeHNN(AbstractVectorField):
         return self.rate_scale * A @ A.T
 
     def __call__(self, state: Array, t: Array, force: Array) -> Array:
-        g = jax.grad(self.hnn.hamiltonian)(state)
-        return jnp.concatenate([g[2:], -g[:2] - self.rayleigh_matrix(state[:2]) @ state[2:] + force])
+        qdot, pdot, p = self.hnn.momentum_rates(state)
+        damping = self.rayleigh_matrix(state[:2]) @ p
+        return jnp.concatenate([qdot, (pdot - damping + force) / self.hnn.inertia()])
 
 
 class LNN(AbstractVectorField):
@@ -144,8 +168,8 @@ class LNN(AbstractVectorField):
 def data_statistics(dataset: Dataset) -> dict:
     """The training split's statistics a baseline standardises with: ``n_traj``; per component
     ``state_mean``, ``state_std``, ``deriv_std`` and ``step_std`` (one-step increments, the
-    trainer's step scale); ``force_std`` [N] (at least 1e-3) and ``energy`` (mean squared velocity
-    std, the scale of ``H`` and ``L``)."""
+    trainer's step scale); ``force_std`` [N] (at least 1e-3), ``energy`` (mean squared velocity
+    std, the scale of ``H`` and ``L``) and the body's known dry ``mass`` [kg]."""
     train = dataset.train
     states = train.states.reshape(-1, 4)
     std = states.std(axis=0)
@@ -157,14 +181,18 @@ def data_statistics(dataset: Dataset) -> dict:
         "force_std": float(max(train.forces.std(), 1e-3)),
         "deriv_std": train.derivs.reshape(-1, 4).std(axis=0).tolist(),
         "energy": float(np.mean(std[2:] ** 2)),
+        "mass": float(dataset.body_params["M"]),
     }
 
 
 def build_baseline(kind: str, config: MLPConfig, stats: dict, key: Array) -> AbstractVectorField:
     """A fresh baseline ``kind`` (node, hnn, lnn, dhnn) for data with statistics ``stats``.
 
-    ``stats``: ``state_mean``, ``state_std`` (4 each), ``force_std``, ``deriv_std`` (4), ``energy``.
+    ``stats``: ``state_mean``, ``state_std`` (4 each), ``force_std``, ``deriv_std`` (4), ``energy``
+    and ``mass`` [kg] (the HNN's initial inertia; ``H`` and ``L`` scale as ``mass · energy``; 1 kg
+    where absent).
     """
+    mass = float(stats.get("mass", 1.0))
     norm = Standardiser(
         mean=tuple(stats["state_mean"]), std=tuple(stats["state_std"]), force_std=stats["force_std"]
     )
@@ -172,11 +200,17 @@ def build_baseline(kind: str, config: MLPConfig, stats: dict, key: Array) -> Abs
     if kind == "node":
         return NeuralODE(mlp=_mlp(config, 6, 4, k1), norm=norm, deriv_std=tuple(stats["deriv_std"]))
     if kind in ("hnn", "dhnn"):
-        hnn = HNN(mlp=_mlp(config, 4, 1, k1), norm=norm, energy_scale=stats["energy"])
+        hnn = HNN(
+            mlp=_mlp(config, 4, 1, k1),
+            norm=norm,
+            log_inertia=jnp.zeros(2),
+            energy_scale=mass * stats["energy"],
+            mass=mass,
+        )
         if kind == "hnn":
             return hnn
         rate = float(np.mean(np.asarray(stats["deriv_std"][2:]) / np.asarray(stats["state_std"][2:])))
         return DissipativeHNN(hnn=hnn, dissipation=_mlp(config, 2, 3, k2), rate_scale=rate)
     if kind == "lnn":
-        return LNN(mlp=_mlp(config, 4, 1, k1), norm=norm, energy_scale=stats["energy"])
+        return LNN(mlp=_mlp(config, 4, 1, k1), norm=norm, energy_scale=mass * stats["energy"])
     raise ValueError(kind)
