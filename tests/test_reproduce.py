@@ -58,6 +58,40 @@ def test_job_ids_change_with_what_determines_the_result_only() -> None:
     assert {j.id for j in d if j.seed == 0 and j.variant == "fhnn"} <= {j.id for j in a}
 
 
+def test_job_ids_change_with_the_code_each_job_runs_and_nothing_else(tmp_path: Path, monkeypatch) -> None:
+    """A copy of the package's source: editing a model file reruns the model jobs and keeps the
+    data sets; editing the physics reruns both; editing the CLI or the report reruns nothing."""
+    import functools
+
+    import fhnn.experiments.grid as grid
+    from fhnn.runtime import PACKAGE_ROOT, source_digest
+
+    root = tmp_path / "fhnn"
+    shutil.copytree(PACKAGE_ROOT, root, ignore=shutil.ignore_patterns("__pycache__"))
+    config = ReproduceConfig(seeds=1, models=("fhnn",), ablations=(), scenario_table=())
+
+    def ids() -> tuple[set[str], set[str]]:
+        source_digest.cache_clear()
+        monkeypatch.setattr(grid, "source_digest", functools.partial(source_digest, root=root))
+        data, models = build_grid(config)
+        return {d.id for d in data}, {j.id for j in models}
+
+    before = ids()
+    for edited, data_changes, models_change in (
+        ("cli/app.py", False, False),
+        ("experiments/report.py", False, False),
+        ("models/fhnn.py", False, True),
+        ("physics/flows.py", True, True),
+    ):
+        with (root / edited).open("a") as f:
+            f.write("\n# edited\n")
+        after = ids()
+        assert (after[0] != before[0]) == data_changes, edited
+        assert (after[1] != before[1]) == models_change, edited
+        assert after[0] & before[0] == (set() if data_changes else before[0])
+        before = after
+
+
 @pytest.mark.parametrize(
     ("changes", "message"),
     [

@@ -12,8 +12,11 @@ run of the same shapes then loads its training step instead of compiling it (mea
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 from importlib import metadata as _metadata
+from pathlib import Path
 
 import jax
 
@@ -56,4 +59,38 @@ def default_cache_dir() -> str | None:
     return value if os.access(value, os.W_OK) else None
 
 
-__all__ = ["CACHE_ENV", "__version__", "default_cache_dir", "use_compilation_cache"]
+#: The installed package's folder (holding ``physics/``, ``data/``, ...).
+PACKAGE_ROOT = Path(__file__).resolve().parent
+
+
+@functools.cache
+def source_digest(parts: tuple[str, ...], root: Path | None = None) -> str:
+    """A hash (16 hex digits) of the package's source: the relative path and bytes of every
+    ``.py`` file under ``parts`` (folders or files relative to ``root``, default
+    :data:`PACKAGE_ROOT`), in sorted order. What a cached result was computed by: a change to any
+    of these files changes it. Read once per process."""
+    base = PACKAGE_ROOT if root is None else Path(root)
+    files: set[Path] = set()
+    for part in parts:
+        path = base / part
+        if path.is_dir():
+            files.update(path.rglob("*.py"))
+        elif path.is_file():
+            files.add(path)
+        else:
+            raise FileNotFoundError(f"no source {part!r} under {base}")
+    h = hashlib.sha256()
+    for path in sorted(files):
+        h.update(path.relative_to(base).as_posix().encode() + b"\0")
+        h.update(path.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+__all__ = [
+    "CACHE_ENV",
+    "PACKAGE_ROOT",
+    "__version__",
+    "default_cache_dir",
+    "source_digest",
+    "use_compilation_cache",
+]

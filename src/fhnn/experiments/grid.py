@@ -7,9 +7,13 @@ Two kinds of job:
   then evaluates it (metrics at every horizon the tables and figures need, in both averagings,
   the first four test rollouts, and for FHNN the parameter and flow recovery).
 
-Every job is identified by a hash of everything that determines its result (its specification,
-the data set's specification and the package version), so a finished job is recognised and
-skipped however the grid around it changed, and a changed setting never reuses a stale result.
+Every job is identified by a hash of everything that determines its result: its specification
+(for a model job the fully resolved model and training settings, defaults included), the data
+set's specification, and the source code that computes it (:data:`DATA_SOURCES` for a data set,
+:data:`MODEL_SOURCES` for a model job; :func:`~fhnn.runtime.source_digest`). A finished job is
+recognised and skipped however the grid around it changed; a changed setting, default or line of
+the code a job runs reruns that job, and a change elsewhere (the CLI, tables, figures, report)
+reruns nothing.
 
 Which jobs the tables need (``S`` = seeds):
 
@@ -31,7 +35,7 @@ from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
 from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import PAPER_SCENARIOS, SCENARIOS
-from fhnn.runtime import __version__
+from fhnn.runtime import source_digest
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import TrainConfig
 
@@ -162,8 +166,22 @@ def _check_names(what: str, names: tuple[str, ...], valid: Any) -> None:
         raise ConfigError(f"reproduce: {what} lists a name twice: {', '.join(names)}")
 
 
-def _digest(spec: dict[str, Any]) -> str:
-    text = json.dumps({**spec, "version": __version__}, sort_keys=True)
+#: The package sources (relative to the package) a data set's bytes depend on.
+DATA_SOURCES = ("physics", "data", "config.py", "errors.py", "files.py", "runtime.py")
+#: The package sources a model job's result depends on: the data's, the models, training,
+#: evaluation, and the job itself.
+MODEL_SOURCES = (
+    *DATA_SOURCES,
+    "models",
+    "training",
+    "evaluation",
+    "experiments/jobs.py",
+    "experiments/grid.py",
+)
+
+
+def _digest(spec: dict[str, Any], sources: tuple[str, ...]) -> str:
+    text = json.dumps({**spec, "source": source_digest(sources)}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
@@ -184,7 +202,7 @@ class DataJob:
 
     @property
     def id(self) -> str:
-        return f"{self.label}-{_digest(self.spec)}"
+        return f"{self.label}-{_digest(self.spec, DATA_SOURCES)}"
 
     @property
     def filename(self) -> str:
@@ -227,7 +245,7 @@ class ModelJob:
 
     @property
     def id(self) -> str:
-        return f"{self.label}-{_digest(self.spec)}"
+        return f"{self.label}-{_digest(self.spec, MODEL_SOURCES)}"
 
 
 def data_job(config: ReproduceConfig, scenario: str, *, actuation: str | None = None) -> DataJob:

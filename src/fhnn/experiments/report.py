@@ -37,7 +37,7 @@ from fhnn.experiments.tables import (
     to_markdown,
 )
 from fhnn.files import write_atomic
-from fhnn.runtime import __version__
+from fhnn.runtime import __version__, source_digest
 from fhnn.training.run import Run
 from fhnn.training.trainer import TrainConfig
 
@@ -45,7 +45,7 @@ PACKAGES = ("jax", "jaxlib", "equinox", "diffrax", "optax", "numpy", "scipy", "h
 
 
 def package_versions() -> dict[str, str]:
-    out = {"python": platform.python_version(), "fhnn": __version__}
+    out = {"python": platform.python_version(), "fhnn": __version__, "fhnn source": source_digest((".",))}
     for name in PACKAGES:
         try:
             out[name] = metadata.version(name)

@@ -28,7 +28,7 @@ from fhnn.experiments.executors import Task, check_workers, default_workers, run
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
 from fhnn.experiments.report import build_report
 from fhnn.files import check_new_folder, folder_lock, write_atomic, write_folder_atomic
-from fhnn.runtime import __version__, default_cache_dir
+from fhnn.runtime import __version__, default_cache_dir, source_digest
 
 FORMAT = "fhnn-reproduction"
 #: ``progress(phase, done, total, last)``: phase "jobs" (data sets and training jobs still to do)
@@ -158,7 +158,7 @@ def _reproduce(
 
     # 3. the report, unless nothing changed since it was last built
     stamp = hashlib.sha256(
-        json.dumps([__version__, config.to_dict(), sorted(jobs_by_id)], sort_keys=True).encode()
+        json.dumps([source_digest((".",)), config.to_dict(), sorted(jobs_by_id)], sort_keys=True).encode()
     ).hexdigest()
     stamp_path = out / "report.stamp"
     fresh = (
