@@ -18,7 +18,7 @@ from fhnn.errors import ConfigError, FhnnError
 from fhnn.experiments.executors import Task, run_local
 from fhnn.experiments.grid import HORIZONS, ReproduceConfig, build_grid
 from fhnn.experiments.reproduce import check_output_folder, reproduce
-from fhnn.experiments.tables import build_tables, layout, to_csv, to_json
+from fhnn.experiments.tables import DIVERGENCE_RULE, build_tables, layout, to_csv, to_json, to_markdown
 from fhnn.training.trainer import TrainConfig
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -224,8 +224,9 @@ def test_cells_are_mean_and_sample_std_over_seeds_with_the_paper_beside() -> Non
     assert cell.paper == 6.09e-4
     assert cell.text() == "1.00e-02 ± 7.07e-03"
     lnn = next(c for c in cells if (c.table, c.model, c.horizon, c.metric) == ("T2", "lnn", 5, "rmse_pos"))
-    assert lnn.mean == pytest.approx(2.5) and lnn.diverged == 5 and lnn.rollouts == 8
-    assert lnn.text().endswith("(5/8 div.)")
+    # no survivor averages: both seeds had a diverged rollout, so both count as infinite
+    assert lnn.mean == math.inf and lnn.diverged == 5 and lnn.rollouts == 8
+    assert lnn.statistic == "median" and lnn.text() == "diverged (5/8)"
     assert lnn.paper == 5.85e10
     t6 = next(c for c in cells if (c.table, c.metric) == ("T6", "m_ax"))
     assert t6.mean == pytest.approx(0.03) and t6.text().startswith("3 % ±")
@@ -236,6 +237,29 @@ def test_cells_are_mean_and_sample_std_over_seeds_with_the_paper_beside() -> Non
     assert to_csv(cells).count("\n") == len(cells) + 1
     for _, _, header, table_rows in layout(cells):
         assert all(len(r) == len(header) for r in table_rows)
+
+
+def test_a_seed_with_a_diverged_rollout_is_kept_as_infinite_and_the_cell_shows_the_median() -> None:
+    config = ReproduceConfig(
+        seeds=3,
+        models=("fhnn",),
+        ablations=(),
+        main_scenarios=("solid_body_vortex",),
+        scenario_table=(),
+        identifiability=False,
+    )
+    _, jobs = build_grid(config)
+    value = {0: 1e-3, 1: 2e-3, 2: 0.7}  # seed 2 diverged in one rollout: its 0.7 is a survivor mean
+    results = {j.id: _result(value[j.seed], diverged=int(j.seed == 2)) for j in jobs}
+    cells = build_tables(jobs, results, ("solid_body_vortex",), ())
+    cell = next(c for c in cells if (c.table, c.horizon, c.metric) == ("T2", 1, "rmse_pos"))
+    assert cell.statistic == "median" and cell.mean == pytest.approx(2e-3)  # median of (1e-3, 2e-3, inf)
+    assert math.isnan(cell.std)
+    assert cell.text() == "median 2.00e-03 (1/12 div.)"
+    outside = next(c for c in cells if (c.table, c.horizon, c.metric) == ("T3", 30, "outside_training"))
+    assert outside.mean == pytest.approx(0.25) and outside.statistic == "mean"  # a fraction stays finite
+    markdown = to_markdown(cells, 3)
+    assert markdown.count(DIVERGENCE_RULE) == 1 + len({(k, t) for k, t, _, _ in layout(cells) if k != "T6"})
 
 
 def test_a_cell_whose_every_rollout_diverged_reads_diverged() -> None:

@@ -10,9 +10,9 @@ For a horizon ``H`` [s] the checkpoints are ``t = 1, 2, …, H`` (or ``0, 1, …
 - ``fde = mean ‖Δx(H)‖`` over trajectories;
 - ``within_eps`` = fraction of trajectories with ``‖Δx(H)‖ < eps`` (``eps = 0.01 m``).
 
-Diverged trajectories (non-finite prediction anywhere up to ``H``) are counted in ``diverged`` and
-left out of the averages (which are NaN when every trajectory diverged); ``within_eps`` counts them
-as failures.
+A diverged trajectory (non-finite prediction anywhere up to ``H``) is counted in ``diverged`` and
+has an infinite error: no trajectory is left out, so ``mse_*``, ``rmse_*``, ``ade`` and ``fde`` are
+``inf`` as soon as one trajectory diverged, and ``within_eps`` counts it as a failure.
 """
 
 from __future__ import annotations
@@ -54,22 +54,20 @@ def trajectory_metrics(
     upto = samples_until(t, horizon)
     finite = np.all(np.isfinite(pred[:, :upto]), axis=(1, 2))
     n = pred.shape[0]
-    err = pred[finite][:, idx] - truth[finite][:, idx]
+    err = pred[:, idx] - truth[:, idx]
+    err[~finite] = np.inf  # a diverged trajectory's error is infinite at every checkpoint
     dpos, dvel = err[..., :2], err[..., 2:]
     dist = np.linalg.norm(dpos, axis=-1)
-    final = np.full(n, np.inf)
-    final[finite] = dist[:, -1] if dist.size else np.inf
-    with np.errstate(invalid="ignore"):
-        mse_pos = float(np.mean(dpos**2)) if finite.any() else np.nan
-        mse_vel = float(np.mean(dvel**2)) if finite.any() else np.nan
-        return {
-            "mse_pos": mse_pos,
-            "rmse_pos": float(np.sqrt(mse_pos)),
-            "mse_vel": mse_vel,
-            "rmse_vel": float(np.sqrt(mse_vel)),
-            "ade": float(np.mean(dist)) if finite.any() else np.nan,
-            "fde": float(np.mean(dist[:, -1])) if finite.any() else np.nan,
-            "within_eps": float(np.mean(final < eps)),
-            "diverged": int(n - finite.sum()),
-            "n_traj": int(n),
-        }
+    mse_pos = float(np.mean(dpos**2))
+    mse_vel = float(np.mean(dvel**2))
+    return {
+        "mse_pos": mse_pos,
+        "rmse_pos": float(np.sqrt(mse_pos)),
+        "mse_vel": mse_vel,
+        "rmse_vel": float(np.sqrt(mse_vel)),
+        "ade": float(np.mean(dist)),
+        "fde": float(np.mean(dist[:, -1])),
+        "within_eps": float(np.mean(dist[:, -1] < eps)),
+        "diverged": int(n - finite.sum()),
+        "n_traj": int(n),
+    }

@@ -26,6 +26,7 @@ from fhnn.data.dataset import read_dataset
 from fhnn.experiments import figures
 from fhnn.experiments.grid import ABLATIONS, HORIZONS, ModelJob, ReproduceConfig
 from fhnn.experiments.tables import (
+    DIVERGENCE_RULE,
     MODEL_NAMES,
     Cell,
     build_tables,
@@ -262,12 +263,14 @@ def _html(
         f"<p>{e(cell_note(config.seeds))}</p>",
         "<h2>Tables</h2>",
     ]
-    for _, title, header, rows in layout(cells):
+    for key, title, header, rows in layout(cells):
         parts.append(
             f"<h3>{e(title)}</h3><table><tr>" + "".join(f"<th>{e(h)}</th>" for h in header) + "</tr>"
         )
         parts += ["<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in rows]
         parts.append("</table>")
+        if key != "T6":
+            parts.append(f"<p class='rule'>{e(DIVERGENCE_RULE)}</p>")
     parts.append("<h2>Figures</h2>")
     for p in pngs:
         data = base64.b64encode(p.read_bytes()).decode()

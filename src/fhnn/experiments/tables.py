@@ -3,8 +3,10 @@
 Every cell is one :class:`Cell` — a (table, data set, model, horizon, metric) with our mean and
 sample standard deviation over seeds in SPEC §5's averaging (checkpoints ``t = 1, …, H``) and in
 the paper's (``t = 0, …, H``), how many rollouts diverged, and the paper's own number where it
-has one. Diverged rollouts are left out of a seed's averages and counted; a seed whose every
-rollout diverged contributes no number, and a cell with no number is shown as "diverged".
+has one. No rollout and no seed is ever left out (:data:`DIVERGENCE_RULE`): a diverged rollout
+has an infinite error, so a seed with one has an infinite error metric; a cell whose seeds are all
+finite holds their mean ± std, any other cell the median over all its seeds (finite while fewer
+than half of them diverged, else shown as "diverged") and the number of diverged rollouts.
 
 Written as ``tables.json`` and ``tables.csv`` (one row per cell) and as Markdown (one table per
 T and data set: a row per model and horizon, per metric the columns "ours", "ours, t=0..H" and
@@ -53,6 +55,15 @@ METRIC_NAMES = {
     "c_l": "c_l",
     "flow": "flow (rel. L2)",
 }
+#: Error metrics a diverged rollout makes infinite (the fractions count it as a failure).
+ERROR_METRICS = ("rmse_pos", "rmse_vel", "ade", "fde")
+#: How a table treats diverged rollouts; printed under every table.
+DIVERGENCE_RULE = (
+    "No rollout or seed is left out: a diverged rollout counts as an infinite error, so a seed with "
+    "one has an infinite error; a cell with such a seed shows the median over all seeds, marked "
+    "'median' ('diverged' once half the seeds or more have one), and '(k/n div.)': k of the n "
+    "rollouts diverged."
+)
 #: Table label of every model kind and FHNN variant (from the registry).
 MODEL_NAMES = MODELS.labels()
 
@@ -72,12 +83,16 @@ class Cell:
     mean_paper_avg: float
     std_paper_avg: float
     paper: float | None
+    statistic: str = "mean"
 
     def text(self, paper_avg: bool = False) -> str:
-        """``mean ± std`` (3 significant digits), "diverged", and the divergence count."""
+        """``mean ± std`` or ``median`` (3 significant digits), "diverged", and the divergence count
+        (:data:`DIVERGENCE_RULE`)."""
         mean, std = (self.mean_paper_avg, self.std_paper_avg) if paper_avg else (self.mean, self.std)
         if not math.isfinite(mean):
             return f"diverged ({self.diverged}/{self.rollouts})" if self.diverged else "n/a"
+        if self.statistic == "median":
+            return f"median {mean:.2e} ({self.diverged}/{self.rollouts} div.)"
         pct = self.metric in RECOVERY_METRICS or self.metric in ("outside_training", "within_eps")
         if pct:  # percentages; a spread below 0.001 percentage points is rounding noise
             out = f"{100 * mean:.3g} %" + (f" ± {100 * std:.2g} %" if self.seeds > 1 else "")
@@ -91,23 +106,36 @@ class Cell:
 
 
 def seed_stats(values: list[float]) -> tuple[float, float]:
-    """Mean and sample std (0 for one value) of the finite ``values``; NaN, NaN if none is finite."""
-    finite = [v for v in values if v is not None and math.isfinite(v)]
-    if not finite:
+    """Mean and sample std (0 for one value) of per-seed ``values`` when all are finite; else the
+    median over all of them (a non-finite value counts as +inf, so the median is inf once half or
+    more are) and NaN for the spread (:data:`DIVERGENCE_RULE`)."""
+    v = np.array([math.inf if x is None or not math.isfinite(x) else x for x in values], dtype=float)
+    if v.size == 0:
         return math.nan, math.nan
-    return float(np.mean(finite)), float(np.std(finite, ddof=1)) if len(finite) > 1 else 0.0
+    if not np.all(np.isfinite(v)):
+        return float(np.median(v)), math.nan
+    return float(np.mean(v)), float(np.std(v, ddof=1)) if v.size > 1 else 0.0
+
+
+def _seed_value(metrics: dict, metric: str) -> float:
+    """A seed's ``metric``: infinite for an error metric when one of its rollouts diverged."""
+    if metric in ERROR_METRICS and int(metrics["diverged"]) > 0:
+        return math.inf
+    return float(metrics[metric])
 
 
 def _cell(table: str, data: str, model: str, horizon: int | None, metric: str, results: list[dict]) -> Cell:
-    if horizon is None:  # recovery
-        values = [_recovery_value(r, metric) for r in results]
+    if horizon is None:  # recovery: every job has a number, or (not computed) none has
+        values = [v for v in (_recovery_value(r, metric) for r in results) if math.isfinite(v)]
         mean, std = seed_stats(values)
         return Cell(table, data, model, None, metric, mean, std, len(results), 0, 0, math.nan, math.nan, None)
     h = str(horizon)
     spec = [r["spec_metrics"][h] for r in results]
     paper = [r["paper_metrics"][h] for r in results]
-    mean, std = seed_stats([m[metric] for m in spec])
-    mean_p, std_p = seed_stats([m[metric] for m in paper])
+    values = [_seed_value(m, metric) for m in spec]
+    mean, std = seed_stats(values)
+    mean_p, std_p = seed_stats([_seed_value(m, metric) for m in paper])
+    statistic = "mean" if all(math.isfinite(v) for v in values) else "median"
     if metric == "outside_training":
         mean_p, std_p = math.nan, math.nan
     return Cell(
@@ -124,6 +152,7 @@ def _cell(table: str, data: str, model: str, horizon: int | None, metric: str, r
         mean_p,
         std_p,
         paper_value(table, data if table == "T4" else model, horizon, metric),
+        statistic,
     )
 
 
@@ -244,12 +273,14 @@ def layout(cells: list[Cell]) -> list[tuple[str, str, list[str], list[list[str]]
 def to_markdown(cells: list[Cell], seeds: int) -> str:
     """All tables as Markdown sections."""
     parts = []
-    for _, title, header, rows in layout(cells):
+    for key, title, header, rows in layout(cells):
         parts.append(f"### {title}\n")
         parts.append("| " + " | ".join(header) + " |")
         parts.append("|" + "|".join([" --- "] + [" ---: "] * (len(header) - 1)) + "|")
         parts.extend("| " + " | ".join(r) + " |" for r in rows)
         parts.append("")
+        if key in CAPTIONS and key != "T6":
+            parts += [f"*{DIVERGENCE_RULE}*", ""]
     return cell_note(seeds) + "\n\n" + "\n".join(parts)
 
 
@@ -258,5 +289,5 @@ def cell_note(seeds: int) -> str:
     return (
         f"Each cell: mean ± sample std over {seeds} seed(s) (SPEC §5 averaging, checkpoints t = 1..H); "
         "'ours, t=0..H' averages the paper's way; 'paper' is the paper's number on its own data. "
-        "'(k/n div.)': k of n rollouts diverged and are left out of the averages."
+        + DIVERGENCE_RULE
     )
