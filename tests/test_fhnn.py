@@ -193,6 +193,30 @@ def test_far_field_term_extrapolates_solid_body_rotation_and_is_not_penalised():
     assert float(model.regularization(jnp.ones((4, 4)), jnp.zeros(4))["flow"]) == 0.0
 
 
+class _Frozen(AbstractFlow):
+    """A flow held at its state at ``t = 0``."""
+
+    inner: AbstractFlow
+
+    def stream(self, xy, t):
+        return self.inner.stream(xy, jnp.zeros_like(t))
+
+
+@pytest.mark.parametrize("name", ["time_varying_vortex", "wave"])
+def test_flow_recovery_covers_the_data_time_window_of_a_time_dependent_flow(name):
+    from fhnn.evaluation.recovery import flow_recovery
+
+    data = small_dataset(name, n_traj=6, duration=4.0)
+    truth = data.scenario_object().flow()
+    assert truth.time_dependent
+    exact = flow_recovery(truth, data)
+    assert exact["rel_l2"] == 0.0 and len(exact["times"]) == 16
+    assert exact["times"][0] == data.train.t[0] and exact["times"][-1] == pytest.approx(data.train.t[-1])
+    frozen = _Frozen(truth)
+    assert flow_recovery(frozen, data, t=0.0)["rel_l2"] < 1e-14  # at one instant a steady flow is exact
+    assert flow_recovery(frozen, data)["rel_l2"] > 1e-3  # over the window it does not
+
+
 def test_recovery_of_the_truth_is_exact(data):
     from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 

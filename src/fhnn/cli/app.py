@@ -543,7 +543,12 @@ def inspect(
             "note: trained without actuation — only the ratios c / (M + m_a) are identifiable; "
             "the absolute masses and drag coefficients above are not measured quantities."
         )
-    stdout.print(f"flow: relative L2 error {flow['rel_l2']:.3%} over {flow['points']} grid points")
+    when = (
+        f", {len(flow['times'])} times over {flow['times'][0]:g}–{flow['times'][-1]:g} s"
+        if len(flow["times"]) > 1
+        else ""
+    )
+    stdout.print(f"flow: relative L2 error {flow['rel_l2']:.3%} over {flow['points']} grid points{when}")
     stdout.print("figures: " + ", ".join(str(f) for f in figures))
 
 

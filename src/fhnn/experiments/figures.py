@@ -73,7 +73,7 @@ def flow_figure(
     speeds = [np.hypot(u[..., 0], u[..., 1]) for u in (true_u, learned_u)]
     vmax = max(float(np.max(speeds[0][covered], initial=0.0)), float(np.max(speeds[1][covered], initial=0.0)))
     error = np.hypot(*(learned_u - true_u).transpose(2, 0, 1))
-    rel = flow_recovery(learned, dataset, t=t)["rel_l2"]  # the number `fhnn inspect` reports
+    rel = flow_recovery(learned, dataset, t=t)["rel_l2"]  # at this instant (inspect: over the window)
     fig, axes = plt.subplots(1, 3, figsize=(16, 5.2), layout="constrained")
     for ax, label, u, speed in zip(axes[:2], ("true", "learned"), (true_u, learned_u), speeds, strict=True):
         mesh = ax.pcolormesh(xs, ys, speed, cmap="viridis", vmin=0.0, vmax=vmax, shading="auto")
