@@ -1,0 +1,82 @@
+"""Choose a training plan on the validation split: train FHNN with given settings, score the val split.
+
+Plans are chosen on validation numbers only and confirmed on a data seed not used while tuning
+(the test split is never read here). For each scenario and data seed it prints the wall time, the
+best validation loss, why Adam stopped (if it did), RMSE(pos) of val rollouts at 1 s and 5 s (the
+val trajectories' length allowing), and the coefficient and flow recovery (which compares with the
+simulator's truth, not with held-out data).
+
+Usage::
+
+    python benchmarks/plan_selection.py --scenario steady_vortex --data-seed 1 \\
+        --set train.warmup_steps=400 --set train.steps=12000 [--plan adam-polish] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from fhnn.data.dataset import read_dataset, write_dataset
+from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.evaluation.evaluate import evaluate
+from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+from fhnn.physics.scenarios import get_scenario
+from fhnn.runtime import default_cache_dir, use_compilation_cache
+from fhnn.training.plans import get_plan
+from fhnn.training.run import Run, RunConfig
+
+
+def _value(text: str):
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--scenario", required=True)
+    p.add_argument("--data-seed", type=int, default=1)
+    p.add_argument("--plan", default=None, help="a named plan to start from")
+    p.add_argument("--set", action="append", default=[], help="NAME=VALUE (dotted, as fhnn train)")
+    p.add_argument("--out", type=Path, default=Path("benchmarks/_plan_selection"))
+    args = p.parse_args()
+    use_compilation_cache(default_cache_dir())
+    args.out.mkdir(parents=True, exist_ok=True)
+    sc = get_scenario(args.scenario)
+    path = args.out / f"{args.scenario}_seed{args.data_seed}.h5"
+    if not path.exists():
+        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc, seed=args.data_seed)), path)
+    ds = read_dataset(path)
+    settings = get_plan(args.plan).settings("fhnn") if args.plan else {}
+    settings.update({k: _value(v) for k, v in (s.split("=", 1) for s in args.set)})
+    config = RunConfig().with_settings(settings)
+    tag = "_".join(f"{k.split('.')[-1]}{v}" for k, v in sorted(settings.items()) if not isinstance(v, list))
+    folder = args.out / f"run_{args.scenario}_s{args.data_seed}_{abs(hash(tag)) % 10**8}"
+    run = Run.create(folder, ds, config, data_path=path)
+    t0 = time.perf_counter()
+    state = run.train(ds, save=False)
+    secs = time.perf_counter() - t0
+    horizons = [h for h in (1, 5) if h <= ds.val.t[-1] + 1e-9]
+    res = evaluate(state.best_model, ds, horizons, split="val")["horizons"]
+    out = {
+        "scenario": args.scenario,
+        "data_seed": args.data_seed,
+        "settings": settings,
+        "seconds": round(secs, 1),
+        "best_val": state.best_val,
+        "stopped": state.stopped,
+        "val_rmse_pos": {h: res[h]["rmse_pos"] for h in res},
+    }
+    if ds.actuation != "none":
+        coef = coefficient_recovery(state.best_model.coefficients, ds)
+        out["coef_max_rel"] = {k: coef[k]["max_rel"] for k in ("m_ax", "m_ay", "c_q", "c_l")}
+        out["flow_rel_l2"] = flow_recovery(state.best_model.flow, ds)["rel_l2"]
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
