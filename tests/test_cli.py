@@ -1,6 +1,7 @@
 """The command line: simulate and info, and one-line errors with exit status 2 on bad input."""
 
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -117,3 +118,19 @@ def test_console_script(tmp_path):
     assert done.stderr.strip().startswith("error: unknown scenario 'nope'")
     done = subprocess.run([sys.executable, "-m", "fhnn.cli.app", "--help"], capture_output=True, text=True)
     assert done.returncode == 0 and "simulate" in done.stdout
+
+
+def test_json_output_of_an_infinite_error_is_strict_json_null() -> None:
+    """A diverged rollout's error is infinite; ``--json`` writes it as null, never ``Infinity``."""
+    from fhnn.cli.app import finite_or_null
+
+    metrics = {"1": {"rmse_pos": math.inf, "ade": 0.5, "mse_pos": math.nan}, "runs": [1.0, -math.inf]}
+    text = json.dumps(finite_or_null(metrics), allow_nan=False)
+
+    def refuse(token: str) -> None:
+        raise AssertionError(f"non-standard JSON token {token}")
+
+    assert json.loads(text, parse_constant=refuse) == {
+        "1": {"rmse_pos": None, "ade": 0.5, "mse_pos": None},
+        "runs": [1.0, None],
+    }

@@ -7,6 +7,7 @@ Every error caused by input (a bad option, parameter, file) is printed as one li
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import sys
@@ -399,6 +400,18 @@ def _stopped_text(run: Any) -> str:
 DEFAULT_HORIZONS = (1, 2, 5, 16, 60)
 
 
+def finite_or_null(value: Any) -> Any:
+    """``value`` with every non-finite float (in nested dicts and lists) replaced by ``None``: strict
+    JSON has no infinity or NaN."""
+    if isinstance(value, dict):
+        return {k: finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [finite_or_null(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 @app.command()
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="Run folder written by `fhnn train`.")],
@@ -414,7 +427,12 @@ def evaluate(
     ] = None,
     split: Annotated[str, typer.Option(help="train|val|test")] = "test",
     as_json: Annotated[
-        bool, typer.Option("--json", help="Print {horizon: {metric: value}} as JSON.")
+        bool,
+        typer.Option(
+            "--json",
+            help="Print {horizon: {metric: value}} as strict JSON; an error that is infinite (a "
+            "rollout diverged, see diverged_count) is null.",
+        ),
     ] = False,
 ) -> None:
     """Roll the best model out from each trajectory's first state and report errors at horizons."""
@@ -446,9 +464,8 @@ def evaluate(
             )
     result = run_evaluation(run.state.best_model, dataset, hs, split=split)
     if as_json:
-        typer.echo(
-            json.dumps({**result["horizons"], "diverged_count": int(sum(result["diverged"]))}, indent=2)
-        )
+        out = {**result["horizons"], "diverged_count": int(sum(result["diverged"]))}
+        typer.echo(json.dumps(finite_or_null(out), indent=2, allow_nan=False))
         return
     table = Table(
         title=f"{run_dir} on {split} ({len(result['diverged'])} trajectories)",
