@@ -137,8 +137,8 @@ def recover_files(folder: str | os.PathLike[str]) -> None:
                 if _pending(folder, name).exists():
                     os.replace(_pending(folder, name), folder / name)
             journal.unlink()
-        for path in folder.glob(".*.pending"):
-            path.unlink()
+        for path in pending:  # those the journal did not rename: an uncommitted write
+            path.unlink(missing_ok=True)
     except (OSError, ValueError) as exc:
         raise DataFormatError(
             f"{folder}: an interrupted checkpoint write cannot be completed ({exc}); make the folder "

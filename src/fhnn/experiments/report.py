@@ -33,6 +33,7 @@ from fhnn.experiments.tables import (
     cell_note,
     layout,
     seed_stats,
+    seed_value,
     to_csv,
     to_json,
     to_markdown,
@@ -140,8 +141,12 @@ def make_figures(
 
 
 def _curve(results: list[dict], metric: str) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and sample std over seeds of ``metric`` at every horizon of :data:`HORIZONS`."""
-    stats = np.array([seed_stats([r["spec_metrics"][str(h)][metric] for r in results]) for h in HORIZONS])
+    """Per horizon of :data:`HORIZONS`, ``metric`` over seeds as the tables state it
+    (:func:`~fhnn.experiments.tables.seed_stats` of each seed's
+    :func:`~fhnn.experiments.tables.seed_value`): mean and sample std, or the median and NaN."""
+    stats = np.array(
+        [seed_stats([seed_value(r["spec_metrics"][str(h)], metric) for r in results]) for h in HORIZONS]
+    )
     return stats[:, 0], stats[:, 1]
 
 

@@ -117,7 +117,7 @@ def seed_stats(values: list[float]) -> tuple[float, float]:
     return float(np.mean(v)), float(np.std(v, ddof=1)) if v.size > 1 else 0.0
 
 
-def _seed_value(metrics: dict, metric: str) -> float:
+def seed_value(metrics: dict, metric: str) -> float:
     """A seed's ``metric``: infinite for an error metric when one of its rollouts diverged."""
     if metric in ERROR_METRICS and int(metrics["diverged"]) > 0:
         return math.inf
@@ -132,9 +132,9 @@ def _cell(table: str, data: str, model: str, horizon: int | None, metric: str, r
     h = str(horizon)
     spec = [r["spec_metrics"][h] for r in results]
     paper = [r["paper_metrics"][h] for r in results]
-    values = [_seed_value(m, metric) for m in spec]
+    values = [seed_value(m, metric) for m in spec]
     mean, std = seed_stats(values)
-    mean_p, std_p = seed_stats([_seed_value(m, metric) for m in paper])
+    mean_p, std_p = seed_stats([seed_value(m, metric) for m in paper])
     statistic = "mean" if all(math.isfinite(v) for v in values) else "median"
     if metric == "outside_training":
         mean_p, std_p = math.nan, math.nan

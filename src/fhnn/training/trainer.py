@@ -311,7 +311,7 @@ class Trainer:
             state.best_val, state.best_model = val["total"], model
         state.model, state.step = model, record["step"]
         reason = None if stop is None else stop_reason(state.history, stop)
-        if stop is not None and reason is not None:
+        if reason is not None:
             state.stopped = f"Adam stopped at step {record['step']} of {stop.steps}: {reason}"
             state.step = stop.steps
         if callback is not None:
