@@ -59,6 +59,34 @@ def ws(tmp_path_factory: pytest.TempPathFactory) -> Path:
             path, edit = change(ws / name)
             path.write_text(json.dumps(edit(json.loads(path.read_text()))))
     (ws / "corrupt_run" / "best.eqx").write_bytes(b"\0garbage")
+    rows = [[str(i), f"{k / 10:g}", str(k), str(i)] for i in range(3) for k in range(4)]
+
+    def csv(header: str, body: list[list[str]]) -> str:
+        return header + "\n" + "".join(",".join(r) + "\n" for r in body)
+
+    def edit(row: int, col: int, value: str) -> list[list[str]]:  # row counts data rows from 1
+        return [
+            [value if (r, c) == (row - 1, col) else v for c, v in enumerate(line)]
+            for r, line in enumerate(rows)
+        ]
+
+    tables = {
+        "good.csv": csv("traj_id,t,x,y", rows),
+        "nocol.csv": csv("traj_id,time,x,y", rows),
+        "extra.csv": csv("traj_id,t,x,y,z", [[*r, "0"] for r in rows]),
+        "halfvel.csv": csv("traj_id,t,x,y,vx", [[*r, "0"] for r in rows]),
+        "text.csv": csv("traj_id,t,x,y", edit(7, 2, "two")),
+        "inf.csv": csv("traj_id,t,x,y", edit(12, 2, "inf")),
+        "dup.csv": csv("traj_id,t,x,y", edit(7, 1, "0.1")),
+        "short.csv": csv("traj_id,t,x,y", [*rows, ["9", "0", "0", "0"], ["9", "1", "1", "1"]]),
+        "two.csv": csv("traj_id,t,x,y", rows[:8]),
+        "empty.csv": "traj_id,t,x,y\n",
+        "gaps.csv": csv("traj_id,t,x,y", [[r[0], r[1], "", ""] for r in rows]),
+        "table.txt": csv("traj_id,t,x,y", rows),
+        "binary.parquet": "not parquet",
+    }
+    for name, text in tables.items():
+        (ws / name).write_text(text)
     (ws / "afile").write_text("mine")
     (ws / "locked").mkdir()
     (ws / "bad.toml").write_text("[train]\nlr = \n")
@@ -76,6 +104,7 @@ def _snapshot(folder: Path) -> dict[str, tuple[str, int]]:
 
 
 S = ["simulate", "steady_vortex"]
+B = ["--mass", "10", "--area", "0.1"]
 T = ["train", "{ws}/d.h5"]
 #: (arguments — ``{ws}`` is the workspace —, text the one-line message must contain)
 CASES = [
@@ -147,6 +176,49 @@ CASES = [
     (["inspect", "{ws}/run", "{ws}/nan.h5"], "/train/states has 1 NaN or infinite value(s)"),
     # reproduce
     (["reproduce", "--quick", "-o", "{ws}/rep", "--seeds", "0"], "seeds must be > 0, got 0"),
+    # import: tables, body constants, split
+    (["import", "{ws}/nocol.csv", "-o", "{ws}/i.h5", *B], "missing column(s) t (have traj_id, time, x, y)"),
+    (["import", "{ws}/extra.csv", "-o", "{ws}/i.h5", *B], "unknown column(s) z"),
+    (
+        ["import", "{ws}/halfvel.csv", "-o", "{ws}/i.h5", *B],
+        "column 'vy' is missing: give vx and vy, or neither",
+    ),
+    (["import", "{ws}/text.csv", "-o", "{ws}/i.h5", *B], "column 'x', row 7: 'two' is not a number"),
+    (["import", "{ws}/inf.csv", "-o", "{ws}/i.h5", *B], "column 'x', trajectory '2', row 12: infinite value"),
+    (
+        ["import", "{ws}/dup.csv", "-o", "{ws}/i.h5", *B],
+        "trajectory '1': rows 6 and 7 have the same time t = 0.1 s",
+    ),
+    (
+        ["import", "{ws}/short.csv", "-o", "{ws}/i.h5", *B],
+        "trajectory '9' has 2 sample(s) (row 13); at least 3",
+    ),
+    (
+        ["import", "{ws}/two.csv", "-o", "{ws}/i.h5", *B],
+        "the table has 2 trajectory(ies); train, val and test",
+    ),
+    (["import", "{ws}/empty.csv", "-o", "{ws}/i.h5", *B], "the table has no rows"),
+    (["import", "{ws}/gaps.csv", "-o", "{ws}/i.h5", *B], "every row has a missing value"),
+    (["import", "{ws}/table.txt", "-o", "{ws}/i.h5", *B], "unknown table type '.txt'"),
+    (["import", "{ws}/binary.parquet", "-o", "{ws}/i.h5", *B], "not a readable table"),
+    (["import", "{ws}/absent.csv", "-o", "{ws}/i.h5", *B], "absent.csv: no such file"),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", "--mass", "0", "--area", "1"],
+        "--mass must be a number > 0",
+    ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", "--mass", "1", "--area", "nan"],
+        "--area must be a number > 0",
+    ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--split", "70/20"],
+        "--split must be three percentages",
+    ),
+    (["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--split", "70/20/20"], "summing to 100"),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/missing/i.h5", *B],
+        "output folder '{ws}/missing' does not exist",
+    ),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--workers", "0"], "workers"),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "models=fhnn,gru"], "unknown name 'gru' in models"),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "data.n_traj=2"], "n_traj must be >= 3"),
@@ -177,5 +249,5 @@ def test_bad_input_is_one_line_exit_2_and_changes_nothing(
 
 def test_the_matrix_covers_every_command_with_forty_cases() -> None:
     commands = {args[0] for args, _ in CASES}
-    assert commands == {"simulate", "info", "train", "evaluate", "inspect", "reproduce"}
+    assert commands == {"simulate", "import", "info", "train", "evaluate", "inspect", "reproduce"}
     assert len(CASES) >= 40

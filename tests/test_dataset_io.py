@@ -25,7 +25,7 @@ def written(dataset, tmp_path):
 def test_schema_matches_spec(written, dataset):
     with h5py.File(written, "r") as f:
         assert f.attrs["format"] == "fhnn-trajectories"
-        assert f.attrs["format_version"] == 1
+        assert f.attrs["format_version"] == 2
         for key in ("scenario", "seed", "dt", "actuation", "obs_noise", "version"):
             assert key in f.attrs
         params = json.loads(f.attrs["scenario_params"])
@@ -74,7 +74,7 @@ def _corrupt(path, edit):
     [
         (lambda f: f.attrs.__delitem__("format"), "not an fhnn data set (no 'format' attribute)"),
         (lambda f: f.attrs.__setitem__("format", "other"), "format is 'other'"),
-        (lambda f: f.attrs.__setitem__("format_version", 2), "unsupported format_version 2"),
+        (lambda f: f.attrs.__setitem__("format_version", 3), "unsupported format_version 3"),
         (lambda f: f.attrs.__delitem__("body_params"), "missing attribute(s) body_params"),
         (lambda f: f.__delitem__("val"), "missing group /val"),
         (lambda f: f["test"].__delitem__("derivs"), "missing dataset /test/derivs"),

@@ -200,6 +200,52 @@ def simulate(
         _print_summary(summarize(dataset), str(output))
 
 
+@app.command("import")
+def import_table(
+    table: Annotated[
+        Path,
+        typer.Argument(
+            help="Table of samples (.csv or .parquet): traj_id, t, x, y[, vx, vy][, Fx, Fy] in SI units."
+        ),
+    ],
+    output: Annotated[Path, typer.Option("--output", "-o", help="HDF5 data set to write.")],
+    mass: Annotated[float, typer.Option("--mass", help="The body's dry mass M in kg.")],
+    area: Annotated[float, typer.Option("--area", help="The body's reference area A in m².")],
+    rho: Annotated[float, typer.Option("--rho", help="Fluid density in kg/m³.")] = 1000.0,
+    volume: Annotated[
+        float | None, typer.Option("--volume", help="Displaced volume V in m³ [default: M / rho]")
+    ] = None,
+    split: Annotated[
+        str, typer.Option("--split", help="Percent of trajectories for train/val/test.")
+    ] = "70/20/10",
+    seed: Annotated[int, typer.Option(help="Seed of the split's permutation.")] = 0,
+    time_dependent: Annotated[
+        bool, typer.Option("--time-dependent", help="Let models learn a flow that changes in time.")
+    ] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
+) -> None:
+    """Import measured trajectories from a table into a data set: rows in any order, irregular
+    times, unequal lengths; rows with missing values are dropped and counted; velocities the table
+    lacks are estimated from the positions (a smoothing spline at the noise level they show).
+    Trajectories are split into train/val/test by a seeded permutation."""
+    from fhnn.data.table import ImportSettings, parse_split, read_table, table_to_dataset
+
+    settings = ImportSettings(
+        mass=mass,
+        area=area,
+        rho=rho,
+        volume=volume,
+        split=parse_split(split),
+        seed=seed,
+        time_dependent=time_dependent,
+    )
+    check_output_path(output)
+    dataset = table_to_dataset(read_table(table), settings, source=table.name)
+    write_dataset(dataset, output)
+    if not quiet:
+        _print_summary(summarize(dataset), str(output))
+
+
 @app.command()
 def info(
     file: Annotated[Path, typer.Argument(help="An fhnn HDF5 data set.")],
@@ -312,6 +358,16 @@ def train(
     config = RunConfig().with_settings(settings)  # every setting checked before any work
     check_new_folder(out)
     dataset = read_dataset(data)
+    if "derivatives" not in dataset.measured and "train.w_deriv" not in settings:
+        settings["train.w_deriv"] = 0.0  # estimated derivatives are no target: the step loss alone
+        config = RunConfig().with_settings(settings)
+        if not quiet:
+            err.print(
+                f"{data}: derivatives were estimated, not measured: the derivative loss is off "
+                "(train.w_deriv=0; --set train.w_deriv=1 turns it on)",
+                soft_wrap=True,
+                highlight=False,
+            )
     if (out / "run.json").exists():
         run = Run.load(out, expect_model=kind if "kind" in settings else None)
         wanted = run.config.with_settings(settings)
@@ -490,6 +546,44 @@ def evaluate(
     stdout.print(table)
 
 
+def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> None:
+    """``fhnn inspect`` on imported data: the learned coefficients and flow, no truth to compare."""
+    from fhnn.evaluation.recovery import learned_coefficients
+    from fhnn.experiments.figures import coefficient_figure, flow_figure
+
+    coef = learned_coefficients(model.eom, dataset)
+    figures = flow_figure(model.flow, None, dataset, run_dir / "flow")
+    figures += coefficient_figure(
+        model.coefficients, None, dataset, run_dir / "coefficients", flow_of=model.eom
+    )
+    if as_json:
+        typer.echo(json.dumps({"coefficients": coef, "figures": [str(f) for f in figures]}, indent=2))
+        return
+    table = Table(
+        title="learned coefficients over the (r, σ) the training data cover (σ in the learned flow)",
+        title_justify="left",
+    )
+    for col in ("coefficient", "median", "range"):
+        table.add_column(col, justify="right")
+    for name in ("m_ax", "m_ay", "c_q", "c_l"):
+        c = coef[name]
+        table.add_row(name, _fmt(c["median"]), f"{_fmt(c['learned_min'])} – {_fmt(c['learned_max'])}")
+    stdout.print(table)
+    cov = coef["_coverage"]
+    stdout.print(
+        f"covered: r {_fmt(cov['r_min'])} – {_fmt(cov['r_max'])} m, σ {_fmt(cov['sigma_min'])} – "
+        f"{_fmt(cov['sigma_max'])} m/s; no ground truth: these are estimates, not recovery errors",
+        soft_wrap=True,
+    )
+    if "forces" not in dataset.measured:
+        stdout.print(
+            "note: no known forcing in the data — only the ratios c / (M + m_a) are identifiable; "
+            "the absolute masses and drag coefficients above are not determined by the data.",
+            soft_wrap=True,
+        )
+    stdout.print("figures: " + ", ".join(str(f) for f in figures))
+
+
 @app.command()
 def inspect(
     run_dir: Annotated[Path, typer.Argument(help="Run folder written by `fhnn train`.")],
@@ -498,12 +592,17 @@ def inspect(
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the recovery numbers as JSON.")] = False,
 ) -> None:
-    """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN."""
+    """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN.
+    On imported data (no truth): the learned coefficients over the region the data cover, and the
+    learned flow."""
     from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
     from fhnn.experiments.figures import coefficient_figure, flow_figure
 
     run, dataset = _load_run(run_dir, data, fhnn_only=True)
     model = run.state.best_model
+    if dataset.imported:
+        _inspect_learned(run_dir, model, dataset, as_json)
+        return
     coef = coefficient_recovery(model.coefficients, dataset)
     flow = flow_recovery(model.flow, dataset)
     truth = dataset.equations()
@@ -669,15 +768,38 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
         f"dt {summary['dt']} s, actuation {summary['actuation']}, obs_noise {summary['obs_noise']}, "
         f"written by fhnn {summary['version']}"
     )
-    params = ", ".join(
-        f"{k}={v}" for k, v in summary["scenario_params"].items() if k != "modes" and v is not None
-    )
-    stdout.print(f"parameters: {params}")
-    if summary["scenario_params"].get("modes"):
-        stdout.print(f"flow perturbation: {len(summary['scenario_params']['modes'])} frozen modes")
     body = summary["body_params"]
-    laws = "; ".join(f"{k} {_law_text(body[k])}" for k in ("m_ax", "m_ay", "c_q", "c_l"))
-    stdout.print(f"body: M={body['M']} kg, rho={body['rho']} kg/m³, A={body['A']} m²; {laws}")
+    record = summary["imported"]
+    if record:  # a user's measurements: what was measured, estimated, dropped
+        stdout.print(
+            f"imported from {record['source'] or '?'}: {record['rows']} rows, {record['dropped_rows']} "
+            f"dropped (missing values), {record['trajectories']} trajectories; sample step median "
+            f"{_fmt(record['step_median'])} s (range {_fmt(record['step_range'][0])} – "
+            f"{_fmt(record['step_range'][1])} s)",
+            soft_wrap=True,
+            highlight=False,
+        )
+        vel_noise = record["velocity_noise"]
+        stdout.print(
+            f"measured: {', '.join(summary['measured'])}; "
+            f"position noise seen: {_fmt(record['position_noise'])} m"
+            + (f", velocity noise seen: {_fmt(vel_noise)} m/s" if vel_noise is not None else "")
+            + f"; velocities: {record['velocity']}",
+            soft_wrap=True,
+            highlight=False,
+        )
+        stdout.print(
+            f"body: M={body['M']} kg, rho={body['rho']} kg/m³, A={body['A']} m², V={_fmt(body['V'])} m³"
+        )
+    else:
+        params = ", ".join(
+            f"{k}={v}" for k, v in summary["scenario_params"].items() if k != "modes" and v is not None
+        )
+        stdout.print(f"parameters: {params}")
+        if summary["scenario_params"].get("modes"):
+            stdout.print(f"flow perturbation: {len(summary['scenario_params']['modes'])} frozen modes")
+        laws = "; ".join(f"{k} {_law_text(body[k])}" for k in ("m_ax", "m_ay", "c_q", "c_l"))
+        stdout.print(f"body: M={body['M']} kg, rho={body['rho']} kg/m³, A={body['A']} m²; {laws}")
     if any(summary["redraws"].values()):
         stdout.print(f"redrawn trajectories (too close to the obstacle): {summary['redraws']}")
     splits = summary["splits"]
@@ -693,6 +815,8 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
         cover.add_column(name, justify="right", no_wrap=True)
     labels = {"r": "r \\[m]", "speed": "|v| \\[m/s]", "sigma": "σ \\[m/s]", "force": "|F_ext| \\[N]"}
     for key, label in labels.items():
+        if key not in next(iter(splits.values()))["coverage"]:
+            continue  # σ needs the true flow
         cells = [f"{_fmt(s['coverage'][key][0])} – {_fmt(s['coverage'][key][1])}" for s in splits.values()]
         cover.add_row(label, *cells)
     stdout.print(cover)

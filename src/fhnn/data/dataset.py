@@ -1,15 +1,26 @@
 """Trajectory data sets in memory and in HDF5 files (SPEC §3).
 
-File layout (``format = "fhnn-trajectories"``, ``format_version = 1``)::
+File layout (``format = "fhnn-trajectories"``, ``format_version = 2``)::
 
     /                 attrs: format, format_version, scenario, seed, scenario_params (JSON),
                              body_params (JSON), dt, actuation, obs_noise, version, ...
-    /{train,val,test}/t             (T,)         s, starting at 0
+    /{train,val,test}/t             (T,)         s, starting at 0 (one grid for every trajectory)
+                                    or (N, T)    s, each trajectory's own times (irregular data)
+    /{train,val,test}/lengths       (N,)         optional: samples of each trajectory (padded after)
     /{train,val,test}/states        (N, T, 4)    observed (x, y, vx, vy)
     /{train,val,test}/states_clean  (N, T, 4)    noise-free truth
     /{train,val,test}/derivs        (N, T, 4)    true ds/dt at the clean states
     /{train,val,test}/forces        (N, T, 2)    F_ext at each sample time [N]
     /{train,val,test}/actuation     (N, 2, 3, 3) per axis and mode: (amplitude, frequency, phase)
+
+Version 2 adds what imported measurements need (version 1 files, written before, are read as
+they are): per-trajectory times ``t`` of shape ``(N, T)`` and ``lengths`` for trajectories of
+unequal length — samples past a trajectory's length are padding (times continue increasing, the
+other arrays repeat its last sample) that no loss or metric reads — and the root attribute
+``measured`` (JSON list, a subset of :data:`MEASURABLE`) naming which fields were measured; the
+others were estimated (:mod:`fhnn.data.table`). A data set without it was simulated: every field
+is the truth. An imported data set has ``scenario = "imported"`` and ``body_params`` holding the
+known constants ``M, rho, A, V`` only: its flow and coefficients are what a model is to find.
 
 :func:`write_dataset` writes to a temporary file beside the target and renames it, so a failure
 never leaves a partial file. :func:`read_dataset` checks format, version, groups, shapes and values
@@ -36,7 +47,13 @@ from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.scenarios import Scenario, scenario_class
 
 FORMAT = "fhnn-trajectories"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: The oldest format version this fhnn reads.
+OLDEST_FORMAT_VERSION = 1
+#: ``scenario`` of a data set made from a user's measurements (no known flow or coefficients).
+IMPORTED = "imported"
+#: Fields a data set may have measured rather than estimated (attribute ``measured``).
+MEASURABLE = ("positions", "velocities", "forces", "derivatives")
 SPLITS = ("train", "val", "test")
 ARRAYS = ("t", "states", "states_clean", "derivs", "forces", "actuation")
 REQUIRED_ATTRS = (
@@ -60,15 +77,18 @@ def samples_until(t: np.ndarray, until: float) -> int:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Split:
-    """One split of a data set: ``N`` trajectories sampled at the ``T`` times ``t``.
+    """One split of a data set: ``N`` trajectories of (up to) ``T`` samples.
 
     Attributes:
-        t: sample times [s], shape ``(T,)``.
+        t: sample times [s], shape ``(T,)`` (one grid for every trajectory) or ``(N, T)`` (each
+            trajectory's own, strictly increasing along each row, padding included).
         states: observed states, shape ``(N, T, 4)``.
         states_clean: noise-free states, shape ``(N, T, 4)``.
         derivs: true ``ds/dt`` at the clean states, shape ``(N, T, 4)``.
         forces: ``F_ext`` [N] at the sample times, shape ``(N, T, 2)``.
         actuation: forcing parameters, shape ``(N, 2, 3, 3)``.
+        lengths: samples of each trajectory, shape ``(N,)``, or ``None``: all ``T``. The samples
+            past a trajectory's length are padding (see the module docstring).
     """
 
     t: np.ndarray
@@ -77,6 +97,7 @@ class Split:
     derivs: np.ndarray
     forces: np.ndarray
     actuation: np.ndarray
+    lengths: np.ndarray | None = None
 
     @property
     def n_traj(self) -> int:
@@ -84,18 +105,61 @@ class Split:
 
     @property
     def n_times(self) -> int:
-        return int(self.t.shape[0])
+        """``T``: samples per trajectory (the longest trajectory's, where lengths differ)."""
+        return int(self.t.shape[-1])
+
+    @property
+    def regular(self) -> bool:
+        """Whether every trajectory is sampled at the same times ``t`` ``(T,)``."""
+        return self.t.ndim == 1 and self.lengths is None
+
+    @property
+    def times(self) -> np.ndarray:
+        """Each trajectory's sample times [s], shape ``(N, T)`` (padding included)."""
+        return np.broadcast_to(self.t, (self.n_traj, self.n_times))
+
+    @property
+    def sample_counts(self) -> np.ndarray:
+        """Samples of each trajectory, shape ``(N,)``."""
+        if self.lengths is None:
+            return np.full(self.n_traj, self.n_times)
+        return np.asarray(self.lengths, dtype=int)
+
+    @property
+    def mask(self) -> np.ndarray:
+        """True at real samples, false at padding, shape ``(N, T)``."""
+        return np.arange(self.n_times)[None, :] < self.sample_counts[:, None]
+
+    @property
+    def end_times(self) -> np.ndarray:
+        """Each trajectory's last sample time [s], shape ``(N,)``."""
+        return self.times[np.arange(self.n_traj), self.sample_counts - 1]
 
     @property
     def duration(self) -> float:
-        return float(self.t[-1] - self.t[0])
+        """The longest trajectory's duration [s]."""
+        return float(np.max(self.end_times - self.times[:, 0]))
+
+    def common_t(self, what: str) -> np.ndarray:
+        """The shared sample times ``(T,)``; :class:`DataFormatError` naming ``what`` needs them
+        where the trajectories have their own times or lengths."""
+        if not self.regular:
+            raise DataFormatError(
+                f"{what} needs trajectories sampled at common times; this data set has each "
+                "trajectory's own times (imported data)"
+            )
+        return self.t
 
     def arrays(self) -> dict[str, np.ndarray]:
-        return {name: getattr(self, name) for name in ARRAYS}
+        out = {name: getattr(self, name) for name in ARRAYS}
+        if self.lengths is not None:
+            out["lengths"] = np.asarray(self.lengths)
+        return out
 
     def subset(self, index: Any) -> Split:
         """The trajectories ``index`` (anything NumPy can index the first axis with)."""
-        return Split(t=self.t, **{k: v[index] for k, v in self.arrays().items() if k != "t"})
+        t = self.t if self.t.ndim == 1 else self.t[index]
+        return Split(t=t, **{k: v[index] for k, v in self.arrays().items() if k != "t"})
 
     @functools.cached_property
     def force_residual(self) -> np.ndarray:
@@ -103,7 +167,7 @@ class Split:
         [N]: zero for simulated data, the recorded forces themselves where the forcing is known
         only as samples (all amplitudes zero). Models take ``F(t)`` from both
         (:func:`~fhnn.physics.actuation.forcing`)."""
-        return force_residual(self.actuation, self.t, self.forces)
+        return force_residual(self.actuation, self.times, self.forces)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -151,12 +215,48 @@ class Dataset:
     def test(self) -> Split:
         return self["test"]
 
+    @property
+    def imported(self) -> bool:
+        """Whether the data are a user's measurements (:data:`IMPORTED`): no known flow or body."""
+        return self.scenario == IMPORTED
+
+    @property
+    def measured(self) -> tuple[str, ...]:
+        """The fields measured (the others were estimated); all of :data:`MEASURABLE` for
+        simulated data."""
+        return tuple(self.extra.get("measured", MEASURABLE))
+
+    @property
+    def time_dependent(self) -> bool:
+        """Whether the flow may depend on time (imported data: as the user said on import)."""
+        if self.imported:
+            return bool(self.scenario_params.get("time_dependent", False))
+        return bool(self.scenario_object().time_dependent)
+
+    def constants(self) -> dict[str, Any]:
+        """The body's known constants: ``M`` [kg], ``rho`` [kg/m³], ``A`` [m²], ``V`` [m³] and
+        ``fluid_inertia`` (whether the Morison fluid-inertia force acts)."""
+        p = self.body_params
+        return {
+            "M": float(p["M"]),
+            "rho": float(p["rho"]),
+            "A": float(p["A"]),
+            "V": float(p.get("V", float(p["M"]) / float(p["rho"]))),
+            "fluid_inertia": bool(p.get("fluid_inertia", False)),
+        }
+
+    def _truth(self, what: str) -> None:
+        if self.imported:
+            raise DataFormatError(f"{what} is unknown for imported data (no ground truth)")
+
     def scenario_object(self) -> Scenario:
         """The scenario (with its stored parameters) that generated the data."""
+        self._truth("the scenario")
         return scenario_class(self.scenario).from_dict(self.scenario_params)
 
     def body(self) -> Body:
         """The ground-truth body, rebuilt from ``body_params``."""
+        self._truth("the body's coefficients")
         return Body.from_dict(self.body_params)
 
     def equations(self) -> EquationsOfMotion:
@@ -191,7 +291,8 @@ def write_dataset(dataset: Dataset, path: str | os.PathLike[str]) -> Path:
             for name in SPLITS:
                 group = f.create_group(name)
                 for key, array in dataset[name].arrays().items():
-                    group.create_dataset(key, data=np.asarray(array, dtype=np.float64))
+                    dtype = np.int64 if key == "lengths" else np.float64
+                    group.create_dataset(key, data=np.asarray(array, dtype=dtype))
     return Path(path)
 
 
@@ -222,9 +323,10 @@ def _read_open(path: Path, f: h5py.File) -> Dataset:
     if _text(fmt) != FORMAT:
         raise DataFormatError(f"{path}: not an fhnn data set (format is {_text(fmt)!r}, expected {FORMAT!r})")
     version = _decode(f.attrs.get("format_version"))
-    if version is None or version != FORMAT_VERSION:
+    if not isinstance(version, int) or not OLDEST_FORMAT_VERSION <= version <= FORMAT_VERSION:
         raise DataFormatError(
-            f"{path}: unsupported format_version {version!r} (this fhnn reads {FORMAT_VERSION})"
+            f"{path}: unsupported format_version {version!r} (this fhnn reads "
+            f"{OLDEST_FORMAT_VERSION} to {FORMAT_VERSION})"
         )
     missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
     if missing:
@@ -251,9 +353,16 @@ def _read_open(path: Path, f: h5py.File) -> Dataset:
     )
     if dataset.dt <= 0:
         raise DataFormatError(f"{path}: dt must be > 0, got {dataset.dt}")
+    unknown = set(dataset.measured) - set(MEASURABLE)
+    if unknown or "positions" not in dataset.measured:
+        raise DataFormatError(f"{path}: 'measured' must list positions and only {', '.join(MEASURABLE)}")
     try:
-        dataset.scenario_object()
-        dataset.body()
+        constants = dataset.constants()
+        if not all(constants[k] > 0 for k in ("M", "rho", "A", "V")):
+            raise ValueError(f"M, rho, A and V must be > 0, got {constants}")
+        if not dataset.imported:
+            dataset.scenario_object()
+            dataset.body()
     except Exception as exc:  # a scenario or body that cannot be rebuilt is a format error
         raise DataFormatError(f"{path}: bad scenario or body metadata ({exc})") from None
     return dataset
@@ -269,21 +378,32 @@ def _read_split(path: Path, f: h5py.File, name: str) -> Split:
             raise DataFormatError(f"{path}: missing dataset /{name}/{key}")
         arrays[key] = np.asarray(group[key][()], dtype=np.float64)
     t = arrays["t"]
-    if t.ndim != 1 or t.size < 2:
-        raise DataFormatError(f"{path}: /{name}/t must have shape (T,) with T >= 2, got {t.shape}")
+    if t.ndim not in (1, 2) or t.shape[-1] < 2:
+        raise DataFormatError(f"{path}: /{name}/t must have shape (T,) or (N, T) with T >= 2, got {t.shape}")
+    T = t.shape[-1]
     states_shape = arrays["states"].shape
     if len(states_shape) != 3 or states_shape[0] < 1:
         raise DataFormatError(
-            f"{path}: /{name}/states has shape {states_shape}, expected (N, {t.size}, 4) with N >= 1"
+            f"{path}: /{name}/states has shape {states_shape}, expected (N, {T}, 4) with N >= 1"
         )
     n = states_shape[0]
     expected = {
-        "states": (n, t.size, 4),
-        "states_clean": (n, t.size, 4),
-        "derivs": (n, t.size, 4),
-        "forces": (n, t.size, 2),
+        "t": (n, T) if t.ndim == 2 else (T,),
+        "states": (n, T, 4),
+        "states_clean": (n, T, 4),
+        "derivs": (n, T, 4),
+        "forces": (n, T, 2),
         "actuation": (n, 2, 3, 3),
     }
+    if "lengths" in group:
+        lengths = np.asarray(group["lengths"][()])
+        if lengths.shape != (n,) or not np.issubdtype(lengths.dtype, np.integer):
+            raise DataFormatError(
+                f"{path}: /{name}/lengths must be {n} integers, got {lengths.dtype} {lengths.shape}"
+            )
+        if np.any(lengths < 2) or np.any(lengths > T):
+            raise DataFormatError(f"{path}: /{name}/lengths must lie in [2, {T}]")
+        arrays["lengths"] = lengths.astype(np.int64)
     for key, shape in expected.items():
         if arrays[key].shape != shape:
             raise DataFormatError(f"{path}: /{name}/{key} has shape {arrays[key].shape}, expected {shape}")
@@ -291,7 +411,7 @@ def _read_split(path: Path, f: h5py.File, name: str) -> Split:
         if not np.all(np.isfinite(array)):
             count = int(np.sum(~np.isfinite(array)))
             raise DataFormatError(f"{path}: /{name}/{key} has {count} NaN or infinite value(s)")
-    if np.any(np.diff(t) <= 0):
+    if np.any(np.diff(t, axis=-1) <= 0):
         raise DataFormatError(f"{path}: /{name}/t is not strictly increasing")
     split = Split(**arrays)
     check_forcing(split, f"{path}: /{name}")
@@ -310,7 +430,7 @@ def check_forcing(split: Split, where: str) -> None:
         k = int(np.abs(split.force_residual[i]).max(axis=1).argmax())
         raise DataFormatError(
             f"{where}/forces disagree with /actuation for {bad.size} trajectory(ies), first trajectory "
-            f"{i} at t = {split.t[k]:g} s (recorded {split.forces[i, k].tolist()} N, actuation gives "
+            f"{i} at t = {split.times[i, k]:g} s (recorded {split.forces[i, k].tolist()} N, actuation gives "
             f"{(split.forces[i, k] - split.force_residual[i, k]).tolist()} N)"
         )
 

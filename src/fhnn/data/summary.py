@@ -32,26 +32,24 @@ def relative_speeds(eom: EquationsOfMotion, states: np.ndarray, ts: np.ndarray) 
     return np.asarray(out).reshape(shape)
 
 
-def coverage(eom: EquationsOfMotion, split: Split) -> dict[str, tuple[float, float]]:
-    """Ranges ``(min, max)`` over the clean states of ``split`` of ``r`` [m], ``|v|`` [m/s],
-    ``σ = ‖v − u‖ + ε`` [m/s] and ``|F_ext|`` [N]."""
-    s = split.states_clean
-    r = np.hypot(s[..., 0], s[..., 1])
-    speed = np.hypot(s[..., 2], s[..., 3])
-    sigma = relative_speeds(eom, s, split.t)
-    force = np.hypot(split.forces[..., 0], split.forces[..., 1])
+def coverage(dataset: Dataset, split: Split) -> dict[str, tuple[float, float]]:
+    """Ranges ``(min, max)`` over the real samples of ``split``'s clean states of ``r`` [m],
+    ``|v|`` [m/s], ``|F_ext|`` [N] and, where the data set knows its flow (simulated data),
+    ``σ = ‖v − u‖ + ε`` [m/s]."""
+    s = split.states_clean[split.mask]
     as_range = lambda a: (float(np.min(a)), float(np.max(a)))  # noqa: E731
-    return {
-        "r": as_range(r),
-        "speed": as_range(speed),
-        "sigma": as_range(sigma),
-        "force": as_range(force),
+    out = {
+        "r": as_range(np.hypot(s[..., 0], s[..., 1])),
+        "speed": as_range(np.hypot(s[..., 2], s[..., 3])),
+        "force": as_range(np.hypot(split.forces[split.mask][:, 0], split.forces[split.mask][:, 1])),
     }
+    if not dataset.imported:
+        out["sigma"] = as_range(relative_speeds(dataset.equations(), s, split.times[split.mask]))
+    return out
 
 
 def summarize(dataset: Dataset) -> dict[str, Any]:
     """A JSON-serialisable description of ``dataset``: metadata, split sizes and coverage."""
-    eom = dataset.equations()
     splits = {}
     for name in SPLITS:
         split = dataset[name]
@@ -59,7 +57,7 @@ def summarize(dataset: Dataset) -> dict[str, Any]:
             "n_traj": split.n_traj,
             "n_times": split.n_times,
             "duration": split.duration,
-            "coverage": coverage(eom, split),
+            "coverage": coverage(dataset, split),
         }
     return {
         "scenario": dataset.scenario,
@@ -71,5 +69,7 @@ def summarize(dataset: Dataset) -> dict[str, Any]:
         "obs_noise": dataset.obs_noise,
         "version": dataset.version,
         "redraws": dataset.extra.get("redraws", {}),
+        "measured": list(dataset.measured),
+        "imported": dataset.extra.get("import", {}),
         "splits": splits,
     }

@@ -42,19 +42,30 @@ class Windows:
 
     @classmethod
     def of(cls, split: Split, window: int = 2) -> Windows:
+        """Every window of ``window`` consecutive real samples (padding never enters one); on
+        irregularly sampled data each window carries its own times."""
         n, T = split.n_traj, split.n_times
-        if T < window:
-            raise ConfigError(f"trajectories of {T} samples are shorter than the model's window {window}")
+        counts = split.sample_counts
+        if counts.min() < window:
+            raise ConfigError(
+                f"trajectories of {counts.min()} samples are shorter than the model's window {window}"
+            )
         starts = np.arange(T - window + 1)
         idx = starts[:, None] + np.arange(window)[None, :]  # (K, W)
-        s = split.states[:, idx].reshape(-1, window, 4)
-        deriv = split.derivs[:, idx].reshape(-1, window, 4)
-        forces = split.forces[:, idx].reshape(-1, window, 2)
-        t = np.broadcast_to(split.t[idx], (n, *idx.shape)).reshape(-1, window)
-        act = np.repeat(split.actuation, starts.size, axis=0)
-        traj = np.repeat(np.arange(n), starts.size)
-        dforce = split.force_residual[:, idx].reshape(-1, window, 2)
-        return cls(s=s, t=t, deriv=deriv, forces=forces, act=act, traj=traj, dforce=dforce)
+        keep = (starts[None, :] + window <= counts[:, None]).reshape(-1)  # (N·K,): inside each trajectory
+
+        def cut(a: np.ndarray) -> np.ndarray:
+            return a[:, idx].reshape(-1, window, *a.shape[2:])[keep]
+
+        return cls(
+            s=cut(split.states),
+            t=cut(split.times),
+            deriv=cut(split.derivs),
+            forces=cut(split.forces),
+            act=np.repeat(split.actuation, starts.size, axis=0)[keep],
+            traj=np.repeat(np.arange(n), starts.size)[keep],
+            dforce=cut(split.force_residual),
+        )
 
     def __len__(self) -> int:
         return int(self.s.shape[0])

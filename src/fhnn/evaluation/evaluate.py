@@ -6,10 +6,10 @@ from typing import Any
 
 import numpy as np
 
-from fhnn.data.dataset import Dataset, samples_until
+from fhnn.data.dataset import Dataset
 from fhnn.data.summary import coverage, relative_speeds
 from fhnn.errors import ConfigError
-from fhnn.evaluation.metrics import trajectory_metrics
+from fhnn.evaluation.metrics import irregular_metrics, trajectory_metrics
 from fhnn.models.base import AbstractModel
 
 
@@ -44,25 +44,34 @@ def evaluate(
     if not horizons:
         raise ConfigError("give at least one horizon")
     longest = max(horizons)
-    if longest > data.t[-1] + 1e-9:
-        raise ConfigError(f"horizon {longest:g} s exceeds the {split} trajectories' length {data.t[-1]:g} s")
+    length = data.duration
+    if longest > length + 1e-9:
+        raise ConfigError(f"horizon {longest:g} s exceeds the {split} trajectories' length {length:g} s")
     ro = model.rollout(data, longest)
-    truth = data.states_clean[:, : ro.t.size]
-    eom = dataset.equations()
-    train_cov = coverage(eom, dataset.train)
-    r_lo, r_hi = train_cov["r"]
-    s_lo, s_hi = train_cov["sigma"]
+    size = ro.t.shape[-1]
+    truth = data.states_clean[:, :size]
+    train_cov = coverage(dataset, dataset.train)
     pred = np.where(np.isfinite(ro.states), ro.states, np.nan)
     r = np.hypot(pred[..., 0], pred[..., 1])
-    sig = relative_speeds(eom, np.nan_to_num(pred), ro.t)  # σ of the predicted states in the true flow
-    outside_at = (r < r_lo) | (r > r_hi) | (sig < s_lo) | (sig > s_hi) | ~np.isfinite(r)
+    if dataset.imported:  # no true flow: the region is (r, |v|)
+        second, lo_hi = np.hypot(pred[..., 2], pred[..., 3]), train_cov["speed"]
+    else:  # σ of the predicted states in the true flow
+        sig = relative_speeds(dataset.equations(), np.nan_to_num(pred), ro.t)
+        second, lo_hi = sig, train_cov["sigma"]
+    r_lo, r_hi = train_cov["r"]
+    outside_at = (r < r_lo) | (r > r_hi) | (second < lo_hi[0]) | (second > lo_hi[1]) | ~np.isfinite(r)
+    rel = np.broadcast_to(ro.t - ro.t[..., :1], outside_at.shape)
+    mask = np.ones(outside_at.shape, dtype=bool) if ro.mask is None else ro.mask
 
     def score(zero: bool) -> dict[str, Any]:
         results: dict[str, Any] = {}
         for h in horizons:
-            m = trajectory_metrics(ro.states, truth, ro.t, h, include_zero=zero)
-            upto = samples_until(ro.t, h)
-            m["outside_training"] = float(np.mean(np.any(outside_at[:, :upto], axis=1)))
+            if ro.mask is None:
+                m = trajectory_metrics(ro.states, truth, ro.t, h, include_zero=zero)
+            else:
+                m = irregular_metrics(ro.states, truth, ro.t, ro.mask, h)
+            upto = mask & (rel <= h + 1e-9)
+            m["outside_training"] = float(np.mean(np.any(outside_at & upto, axis=1)))
             results[f"{h:g}"] = m
         return results
 

@@ -71,3 +71,57 @@ def trajectory_metrics(
         "diverged": int(n - finite.sum()),
         "n_traj": int(n),
     }
+
+
+def irregular_metrics(
+    pred: np.ndarray,
+    truth: np.ndarray,
+    t: np.ndarray,
+    mask: np.ndarray,
+    horizon: float,
+    *,
+    eps: float = 0.01,
+) -> dict[str, float]:
+    """Metrics at ``horizon`` [s] for trajectories sampled at their own times ``t`` ``(N, T)``,
+    real where ``mask`` ``(N, T)``: the checkpoints of a trajectory are its samples in ``(t₀,
+    t₀ + H]``, ``fde`` is the error at the last of them. Only trajectories that last at least
+    ``H`` (to half their median step) are scored; ``n_traj`` says how many. Diverged trajectories
+    count as for :func:`trajectory_metrics`."""
+    if horizon <= 0:
+        raise ConfigError(f"horizon must be > 0 s, got {horizon!r}")
+    rel = t - t[:, :1]
+    counts = mask.sum(axis=1)
+    end = rel[np.arange(rel.shape[0]), counts - 1]
+    step = np.median(np.diff(rel, axis=1)[mask[:, 1:]])
+    scored = np.flatnonzero(end >= horizon - 0.5 * step)
+    if scored.size == 0:
+        raise ConfigError(
+            f"horizon {horizon:g} s exceeds every trajectory's length (longest {end.max():g} s)"
+        )
+    sq_pos, sq_vel, dist, final, diverged = [], [], [], [], 0
+    for i in scored:
+        upto = mask[i] & (rel[i] <= horizon + 1e-9)
+        keep = upto & (rel[i] > 0)
+        err = pred[i, keep] - truth[i, keep]
+        if not np.all(np.isfinite(pred[i, upto])):
+            diverged += 1
+            err = np.full_like(err, np.inf)
+        sq_pos.append(err[:, :2] ** 2)
+        sq_vel.append(err[:, 2:] ** 2)
+        d = np.linalg.norm(err[:, :2], axis=-1)
+        dist.append(d)
+        final.append(d[-1])
+    mse_pos = float(np.mean(np.concatenate(sq_pos)))
+    mse_vel = float(np.mean(np.concatenate(sq_vel)))
+    final_arr = np.asarray(final)
+    return {
+        "mse_pos": mse_pos,
+        "rmse_pos": float(np.sqrt(mse_pos)),
+        "mse_vel": mse_vel,
+        "rmse_vel": float(np.sqrt(mse_vel)),
+        "ade": float(np.mean(np.concatenate(dist))),
+        "fde": float(np.mean(final_arr)),
+        "within_eps": float(np.mean(final_arr < eps)),
+        "diverged": int(diverged),
+        "n_traj": int(scored.size),
+    }

@@ -28,10 +28,11 @@ from fhnn.physics.flows import AbstractFlow
 
 
 def visited_r_sigma(eom: EquationsOfMotion, dataset: Dataset, *, max_points: int = 20000) -> np.ndarray:
-    """``(r, σ)`` pairs [m, m/s] at the clean training states (subsampled), shape ``(P, 2)``."""
+    """``(r, σ)`` pairs [m, m/s] at the clean training states (subsampled), shape ``(P, 2)``, σ in
+    the flow of ``eom`` (the truth's, or a model's where the truth is unknown)."""
     split = dataset.train
-    states = split.states_clean.reshape(-1, 4)
-    ts = np.broadcast_to(split.t, split.states_clean.shape[:2]).reshape(-1)
+    states = split.states_clean[split.mask]
+    ts = split.times[split.mask]
     if states.shape[0] > max_points:
         idx = np.random.default_rng(0).choice(states.shape[0], max_points, replace=False)
         states, ts = states[idx], ts[idx]
@@ -98,9 +99,49 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
     return out
 
 
+def learned_coefficients(learned: EquationsOfMotion, dataset: Dataset) -> dict[str, Any]:
+    """The coefficients of a learned model where no truth is known (imported data): per
+    coefficient the median and the range over the ``(r, σ)`` the training data visit (σ in the
+    learned flow); ``_coverage`` as for :func:`coefficient_recovery`; ``_by_sigma``: per σ band its
+    bounds, points, the learned quadratic share of the drag and each coefficient's median."""
+    points = visited_r_sigma(learned, dataset)
+    got = np.asarray(_coefficients_at(learned.coefficients, jnp.asarray(points)))
+    out: dict[str, Any] = {
+        name: {
+            "median": float(np.median(got[:, i])),
+            "learned_min": float(got[:, i].min()),
+            "learned_max": float(got[:, i].max()),
+        }
+        for i, name in enumerate(COEFFICIENT_NAMES)
+    }
+    out["_coverage"] = {
+        "r_min": float(points[:, 0].min()),
+        "r_max": float(points[:, 0].max()),
+        "sigma_min": float(points[:, 1].min()),
+        "sigma_max": float(points[:, 1].max()),
+    }
+    body = dataset.constants()
+    quad = 0.5 * body["rho"] * body["A"] * got[:, 2] * points[:, 1]
+    share = quad / np.maximum(quad + got[:, 3], 1e-300)
+    edges = np.quantile(points[:, 1], SIGMA_BANDS)
+    band = np.clip(np.searchsorted(edges, points[:, 1], side="right") - 1, 0, len(edges) - 2)
+    out["_by_sigma"] = [
+        {
+            "sigma_lo": float(edges[b]),
+            "sigma_hi": float(edges[b + 1]),
+            "points": int((band == b).sum()),
+            "quadratic_share": float(share[band == b].mean()),
+            **dict(zip(COEFFICIENT_NAMES, np.median(got[band == b], axis=0).tolist(), strict=True)),
+        }
+        for b in range(len(edges) - 1)
+        if np.any(band == b)
+    ]
+    return out
+
+
 def flow_grid(dataset: Dataset, *, n: int = 60, reach: float = 0.25) -> np.ndarray:
     """Grid points ``(P, 2)`` in the training data's bounding box within ``reach`` m of a sample."""
-    pos = dataset.train.states_clean[..., :2].reshape(-1, 2)
+    pos = dataset.train.states_clean[dataset.train.mask][:, :2]
     lo, hi = pos.min(axis=0), pos.max(axis=0)
     gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
     grid = np.column_stack([gx.ravel(), gy.ravel()])

@@ -19,6 +19,7 @@ import numpy as np
 from fhnn.data.dataset import Dataset
 from fhnn.evaluation.recovery import flow_recovery, visited_r_sigma
 from fhnn.physics.body import COEFFICIENT_NAMES, AbstractCoefficients
+from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.flows import AbstractFlow
 
 UNITS = {"m_ax": "kg", "m_ay": "kg", "c_q": "-", "c_l": "N·s/m"}
@@ -52,7 +53,7 @@ def _coverage_mask(pos: np.ndarray, xs: np.ndarray, ys: np.ndarray, reach: float
 
 def flow_figure(
     learned: AbstractFlow,
-    truth: AbstractFlow,
+    truth: AbstractFlow | None,
     dataset: Dataset,
     path: Path,
     *,
@@ -62,14 +63,27 @@ def flow_figure(
     """Three panels over the training region at time ``t``: the true and the learned flow (speed
     as colour on one shared scale, streamlines), and the error ``|u_θ − u|``; the outline marks
     where the training data lie (within 0.25 m of a training position), the only place where the
-    learned flow is measured rather than extrapolated."""
-    pos = dataset.train.states_clean[..., :2].reshape(-1, 2)
+    learned flow is measured rather than extrapolated. Without a truth (imported data): the
+    learned flow alone."""
+    pos = dataset.train.states_clean[dataset.train.mask][:, :2]
     lo, hi = pos.min(axis=0), pos.max(axis=0)
     pad = 0.05 * (hi - lo)
     xs = np.linspace(lo[0] - pad[0], hi[0] + pad[0], 60)
     ys = np.linspace(lo[1] - pad[1], hi[1] + pad[1], 60)
-    true_u, learned_u = _velocity_grid(truth, xs, ys, t), _velocity_grid(learned, xs, ys, t)
     covered = _coverage_mask(pos, xs, ys, 0.25)
+    learned_u = _velocity_grid(learned, xs, ys, t)
+    if truth is None:
+        fig, ax = plt.subplots(figsize=(7.5, 5.8), layout="constrained")
+        speed = np.hypot(learned_u[..., 0], learned_u[..., 1])
+        mesh = ax.pcolormesh(xs, ys, speed, cmap="viridis", shading="auto")
+        ax.streamplot(xs, ys, learned_u[..., 0], learned_u[..., 1], color="white", linewidth=0.6, density=1.1)
+        fig.colorbar(mesh, ax=ax, label="speed |u_θ| [m/s]")
+        ax.contour(xs, ys, covered.astype(float), levels=[0.5], colors="red", linewidths=1.2)
+        ax.plot([], [], color="red", label="training data region")
+        ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
+        ax.set(title=f"learned flow, t = {t:g} s", xlabel="x [m]", ylabel="y [m]", aspect="equal")
+        return _save(fig, path, formats)
+    true_u = _velocity_grid(truth, xs, ys, t)
     speeds = [np.hypot(u[..., 0], u[..., 1]) for u in (true_u, learned_u)]
     vmax = max(float(np.max(speeds[0][covered], initial=0.0)), float(np.max(speeds[1][covered], initial=0.0)))
     error = np.hypot(*(learned_u - true_u).transpose(2, 0, 1))
@@ -95,19 +109,23 @@ def flow_figure(
 
 def coefficient_figure(
     learned: AbstractCoefficients,
-    truth: AbstractCoefficients,
+    truth: AbstractCoefficients | None,
     dataset: Dataset,
     path: Path,
     formats: tuple[str, ...] = ("png",),
+    *,
+    flow_of: EquationsOfMotion | None = None,
 ) -> list[Path]:
     """Learned (dots, coloured by r) and true (black) coefficients against σ at the (r, σ) the
-    training data visits, one panel per coefficient."""
+    training data visits, one panel per coefficient. Without a truth (imported data) the learned
+    ones alone, σ taken in the flow of ``flow_of`` (the learned equations)."""
     from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
 
-    points = visited_r_sigma(dataset.equations(), dataset, max_points=3000)
+    eom = dataset.equations() if flow_of is None else flow_of
+    points = visited_r_sigma(eom, dataset, max_points=3000)
     pts = jnp.asarray(points)
     got = np.asarray(jax.vmap(learned)(pts[:, 0], pts[:, 1]))
-    want = np.asarray(jax.vmap(truth)(pts[:, 0], pts[:, 1]))
+    want = None if truth is None else np.asarray(jax.vmap(truth)(pts[:, 0], pts[:, 1]))
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), layout="constrained")
     order = np.argsort(points[:, 1])
     lo, hi = points[:, 1].min(), points[:, 1].max()
@@ -116,7 +134,8 @@ def coefficient_figure(
     scatter = None
     for i, (ax, name) in enumerate(zip(axes.ravel(), COEFFICIENT_NAMES, strict=True)):
         scatter = ax.scatter(points[:, 1], got[:, i], s=4, c=points[:, 0], cmap="plasma", label="learned")
-        ax.plot(points[order, 1], want[order, i], "k-", lw=2, label="true")
+        if want is not None:
+            ax.plot(points[order, 1], want[order, i], "k-", lw=2, label="true")
         ax.set_xscale("log")
         ax.xaxis.set_major_locator(FixedLocator(ticks))  # 1-2-5 ticks, plain labels: none collide
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))

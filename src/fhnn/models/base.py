@@ -46,11 +46,14 @@ STEPS_PER_SAMPLE = 20
 
 @dataclass(frozen=True)
 class Rollout:
-    """Predicted states ``(N, T, 4)`` at times ``t`` ``(T,)``; ``ok`` ``(N,)`` false where diverged."""
+    """Predicted states ``(N, T, 4)`` at times ``t`` ``(T,)`` (or each trajectory's own, ``(N,
+    T)``); ``ok`` ``(N,)`` false where diverged; ``mask`` ``(N, T)`` true at the samples that are
+    real (``None``: all), false at a shorter trajectory's padding."""
 
     t: np.ndarray
     states: np.ndarray
     ok: np.ndarray
+    mask: np.ndarray | None = None
 
 
 class AbstractModel(eqx.Module):
@@ -82,21 +85,32 @@ class AbstractModel(eqx.Module):
         trajectories' end) with the trajectory's own forcing (:meth:`predict`). ``rtol``, ``atol``:
         tolerances of an adaptive solver (unused by discrete models); ``from_clean``: start from
         the clean states (SPEC §5) rather than the observed ones. A trajectory with a non-finite
-        prediction is marked diverged."""
-        t = split.t if until is None else split.t[: samples_until(split.t, until)]
+        prediction at one of its real samples is marked diverged. On irregular data each
+        trajectory is predicted at its own times, up to the last of them at most ``until`` after
+        its start."""
+        times, counts = split.times, split.sample_counts
+        if until is not None:
+            counts = np.minimum(counts, [samples_until(row - row[0], until) for row in times])
+        size = int(counts.max())
+        t = split.t[..., :size]
+        mask = np.arange(size)[None, :] < counts[:, None]
         start = split.states_clean if from_clean else split.states
         states, ok = self.predict(start, split, np.asarray(t), rtol, atol)
         states = np.asarray(states)
+        finite = np.all(np.isfinite(states) | ~mask[..., None], axis=(1, 2))
         return Rollout(
-            t=np.asarray(t), states=states, ok=np.asarray(ok) & np.all(np.isfinite(states), axis=(1, 2))
+            t=np.asarray(t),
+            states=states,
+            ok=np.asarray(ok) & finite,
+            mask=None if split.regular else mask,
         )
 
     @abc.abstractmethod
     def predict(
         self, start: np.ndarray, split: Split, t: np.ndarray, rtol: float, atol: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """States ``(N, T, 4)`` at the times ``t`` ``(T,)`` and ``ok`` ``(N,)`` (false where the
-        prediction failed) for the trajectories of ``split``; ``start`` ``(N, ≥T, 4)`` holds the
+        """States ``(N, T, 4)`` at the times ``t`` ``(T,)`` or ``(N, T)`` and ``ok`` ``(N,)`` (false
+        where the prediction failed) for the trajectories of ``split``; ``start`` ``(N, ≥T, 4)`` holds the
         states a model may start from (a continuous model takes ``start[:, 0]``)."""
 
     def warmup(self) -> tuple[AbstractModel, Callable[[AbstractModel], AbstractModel]] | None:
@@ -146,9 +160,9 @@ class AbstractVectorField(AbstractModel):
         interpolation error). A state beyond :data:`BLOW_UP` times the initial scale, or running
         out of :data:`STEPS_PER_SAMPLE` steps per interval, fails the trajectory."""
         y0 = start[:, 0]
-        max_steps = STEPS_PER_SAMPLE * (t.size - 1) + 1000
+        max_steps = STEPS_PER_SAMPLE * (t.shape[-1] - 1) + 1000
         bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(y0)))))
-        residual = jnp.asarray(split.force_residual[:, : t.size])
+        residual = jnp.asarray(split.force_residual[:, : t.shape[-1]])
         ys, ok = solve_forced_batch(
             self,
             jnp.asarray(y0),

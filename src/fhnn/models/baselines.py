@@ -171,15 +171,15 @@ def data_statistics(dataset: Dataset) -> dict:
     trainer's step scale); ``force_std`` [N] (at least 1e-3), ``energy`` (mean squared velocity
     std, the scale of ``H`` and ``L``) and the body's known dry ``mass`` [kg]."""
     train = dataset.train
-    states = train.states.reshape(-1, 4)
+    states = train.states[train.mask]  # (samples, 4): real samples only
     std = states.std(axis=0)
     return {
         "n_traj": train.n_traj,
         "step_std": LossScales.of(Windows.of(train)).step.tolist(),
         "state_mean": states.mean(axis=0).tolist(),
         "state_std": std.tolist(),
-        "force_std": float(max(train.forces.std(), 1e-3)),
-        "deriv_std": train.derivs.reshape(-1, 4).std(axis=0).tolist(),
+        "force_std": float(max(train.forces[train.mask].std(), 1e-3)),
+        "deriv_std": train.derivs[train.mask].std(axis=0).tolist(),
         "energy": float(np.mean(std[2:] ** 2)),
         "mass": float(dataset.body_params["M"]),
     }

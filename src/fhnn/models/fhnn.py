@@ -257,19 +257,20 @@ def fhnn_arguments(dataset: Dataset) -> dict[str, Any]:
     depends on time and has fluid inertia, and the input scales and radius range of the training
     split."""
     train = dataset.train
-    body = dataset.body()
-    pos = train.states[..., :2]
-    radius = np.hypot(pos[..., 0], pos[..., 1])
+    body = dataset.constants()
+    states = train.states[train.mask]  # (samples, 4): real samples only
+    pos = states[:, :2]
+    radius = np.hypot(pos[:, 0], pos[:, 1])
     return {
-        "mass": body.mass,
-        "rho": body.rho,
-        "area": body.area,
-        "volume": body.volume,
-        "time_dependent": bool(dataset.scenario_object().time_dependent),
-        "fluid_inertia": bool(body.fluid_inertia),
+        "mass": body["M"],
+        "rho": body["rho"],
+        "area": body["A"],
+        "volume": body["V"],
+        "time_dependent": dataset.time_dependent,
+        "fluid_inertia": body["fluid_inertia"],
         "length_scale": float(np.sqrt(np.mean(np.sum(pos**2, axis=-1)))),
-        "speed_scale": float(np.sqrt(np.mean(train.states[..., 2:] ** 2))),
-        "time_scale": float(train.t[-1]),
+        "speed_scale": float(np.sqrt(np.mean(states[:, 2:] ** 2))),
+        "time_scale": float(np.max(train.end_times)),
         "r_range": [float(radius.min()), float(radius.max())],
     }
 

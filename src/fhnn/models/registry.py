@@ -115,6 +115,12 @@ def _dhn(config: DHNConfig, args: dict[str, Any], key: jax.Array) -> AbstractMod
     return build_dhn(config, args, args["n_traj"], key)
 
 
+def _dhn_arguments(dataset: Dataset) -> dict[str, Any]:
+    if not dataset.train.regular:
+        raise ConfigError("the DHN needs trajectories sampled at common, regular times (it steps in blocks)")
+    return data_statistics(dataset)
+
+
 def _sindy(config: SINDyConfig, args: dict[str, Any], key: jax.Array) -> AbstractModel:
     return empty_sindy(config)
 
@@ -138,7 +144,7 @@ MODELS = Registry(
         ModelKind("node", "Neural ODE", "MLP (s, F) → ṡ", MLPConfig, _baseline("node"), data_statistics),
         ModelKind("hnn", "HNN", "Hamiltonian H(q, p)", MLPConfig, _baseline("hnn"), data_statistics),
         ModelKind("lnn", "LNN", "Lagrangian L(q, q̇)", MLPConfig, _baseline("lnn"), data_statistics),
-        ModelKind("dhn", "DHN", "denoising Hamiltonian network", DHNConfig, _dhn, data_statistics),
+        ModelKind("dhn", "DHN", "denoising Hamiltonian network", DHNConfig, _dhn, _dhn_arguments),
         ModelKind(
             "dhnn",
             "dissipative HNN",

@@ -77,10 +77,11 @@ def fit_sindy(config: SINDyConfig, train: Split) -> tuple[SINDyField, list[str]]
         optimizer=ps.STLSQ(threshold=config.threshold, alpha=config.alpha),
         feature_library=_library(config),
     )
-    xs = [np.asarray(s) for s in train.states]
-    us = [np.asarray(f) for f in train.forces]
-    xdots = [np.asarray(d) for d in train.derivs]
-    ts = [np.asarray(train.t)] * len(xs)
+    n = train.sample_counts
+    xs = [np.asarray(s[:k]) for s, k in zip(train.states, n, strict=True)]
+    us = [np.asarray(f[:k]) for f, k in zip(train.forces, n, strict=True)]
+    xdots = [np.asarray(d[:k]) for d, k in zip(train.derivs, n, strict=True)]
+    ts = [np.asarray(t[:k]) for t, k in zip(train.times, n, strict=True)]
     model.fit(xs, t=ts, x_dot=xdots, u=us, feature_names=INPUT_NAMES)
     powers = np.asarray(model.feature_library.powers_, dtype=float)
     field = SINDyField(coefficients=jnp.asarray(model.coefficients()), powers=jnp.asarray(powers))

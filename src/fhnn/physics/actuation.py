@@ -62,12 +62,12 @@ def no_actuation(n: int) -> np.ndarray:
 def force_residual(
     params: np.ndarray, t: np.ndarray, forces: np.ndarray, *, rtol: float = 1e-9
 ) -> np.ndarray:
-    """Recorded ``forces`` ``(N, T, 2)`` [N] at times ``t`` ``(T,)`` less the sinusoids of ``params``
-    ``(N, 2, 3, 3)``, with differences within rounding (``rtol`` of the force scale) set to exactly 0."""
+    """Recorded ``forces`` ``(N, T, 2)`` [N] at times ``t`` ``(T,)`` (or each trajectory's own,
+    ``(N, T)``) less the sinusoids of ``params`` ``(N, 2, 3, 3)``, with differences within rounding
+    (``rtol`` of the force scale) set to exactly 0."""
+    t = np.broadcast_to(np.asarray(t, dtype=float), np.shape(forces)[:2])
     sinusoids = np.asarray(
-        jax.vmap(jax.vmap(actuation_force, in_axes=(None, 0)), in_axes=(0, None))(
-            jnp.asarray(params), jnp.asarray(t)
-        )
+        jax.vmap(jax.vmap(actuation_force, in_axes=(None, 0)))(jnp.asarray(params), jnp.asarray(t))
     )
     residual = np.asarray(forces, dtype=float) - sinusoids
     scale = max(1.0, float(np.max(np.abs(forces), initial=0.0)))

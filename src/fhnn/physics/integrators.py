@@ -120,7 +120,7 @@ def solve_forced_batch(
         y0: initial states, shape ``(N, 4)``.
         actuation: each trajectory's forcing parameters, shape ``(N, 2, 3, 3)``
             (:func:`~fhnn.physics.actuation.actuation_force`).
-        ts: output times [s], shape ``(T,)``.
+        ts: output times [s], shape ``(T,)``, or each trajectory's own, ``(N, T)``.
         rtol, atol, max_steps, bound: as for :func:`adaptive_solve` (``dense=False``).
         residual: recorded forces less the sinusoids at the times ``ts``, shape ``(N, T, 2)``
             (:func:`~fhnn.physics.actuation.forcing`); ``None``: the sinusoids alone.
@@ -129,11 +129,11 @@ def solve_forced_batch(
         ``(states, ok)`` of shapes ``(N, T, 4)`` and ``(N,)``.
     """
 
-    def one(s0: Array, a: Array, r: Array | None) -> tuple[Array, Array]:
+    def one(s0: Array, a: Array, r: Array | None, times: Array) -> tuple[Array, Array]:
         return adaptive_solve(
-            lambda s, t: field(s, t, forcing(a, t, ts if r is not None else None, r)),
+            lambda s, t: field(s, t, forcing(a, t, times if r is not None else None, r)),
             s0,
-            ts,
+            times,
             rtol=rtol,
             atol=atol,
             dense=False,
@@ -141,4 +141,4 @@ def solve_forced_batch(
             bound=bound,
         )
 
-    return jax.vmap(one)(y0, actuation, residual)
+    return jax.vmap(one, in_axes=(0, 0, 0, 0 if ts.ndim == 2 else None))(y0, actuation, residual, ts)

@@ -1,0 +1,426 @@
+"""A user's measured trajectories, from a CSV or Parquet table into a data set (``fhnn import``).
+
+The table has one row per sample, in any order, with the columns (SI units throughout):
+
+======================  ======================================================================
+``traj_id``             which trajectory the row belongs to (any integers or strings)
+``t``                   sample time [s]; each trajectory has its own, irregular times
+``x``, ``y``            position [m]
+``vx``, ``vy``          velocity [m/s] — optional, both or neither; estimated where absent
+``Fx``, ``Fy``          known external force [N] — optional, both or neither; zero where absent
+======================  ======================================================================
+
+Rows with a missing value (an empty cell or NaN) in any column present are gaps: they are dropped
+and counted. Any other problem — a missing or unknown column, a non-numeric or infinite value, two
+rows of one trajectory at the same time, a trajectory with fewer than :data:`MIN_SAMPLES` samples
+— is a :class:`~fhnn.errors.DataFormatError` naming the column, the trajectory and the row (the
+row number counts data rows from 1, the header not included).
+
+Velocities absent from the table, and every acceleration, are estimated
+(:mod:`fhnn.data.derivatives`: a smoothing spline at the noise level the positions show); the data
+set's ``measured`` attribute says which fields were measured, and training then leaves out the
+derivative loss (whose targets would be estimates). Trajectories are split into train, val and
+test by a seeded permutation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split
+from fhnn.data.derivatives import noise_level, smooth_derivatives
+from fhnn.errors import ConfigError, DataFormatError
+from fhnn.files import atomic_output
+from fhnn.runtime import __version__
+
+REQUIRED = ("traj_id", "t", "x", "y")
+OPTIONAL_PAIRS = (("vx", "vy"), ("Fx", "Fy"))
+COLUMNS = (*REQUIRED, *(c for pair in OPTIONAL_PAIRS for c in pair))
+#: Fewest samples a trajectory may have (velocity and noise estimates need neighbours).
+MIN_SAMPLES = 3
+#: Padding after a shorter trajectory's last sample: times go on in steps of this [s].
+PAD_STEP = 1e-6
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """One trajectory of a table: its id, times ``t`` ``(n,)`` [s], positions ``(n, 2)`` [m],
+    velocities ``(n, 2)`` [m/s] or ``None``, forces ``(n, 2)`` [N] or ``None``."""
+
+    traj_id: str
+    t: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray | None
+    force: np.ndarray | None
+
+
+@dataclasses.dataclass(frozen=True)
+class Table:
+    """The trajectories of a table, sorted by id, and the number of gap rows dropped."""
+
+    trajectories: list[Trajectory]
+    rows: int
+    dropped: int
+
+
+def _read_arrow(path: Path) -> Any:
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".parquet":
+            return pq.read_table(path)
+        if suffix == ".csv":
+            # traj_id as text (ids like 007 stay themselves); every other column inferred
+            options = pacsv.ConvertOptions(column_types={"traj_id": pa.string()}, strings_can_be_null=False)
+            return pacsv.read_csv(path, convert_options=options)
+    except (pa.ArrowInvalid, OSError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise DataFormatError(f"{path}: not a readable table ({first})") from None
+    raise DataFormatError(f"{path}: unknown table type {path.suffix!r}; give a .csv or .parquet file")
+
+
+def _numeric(path: Path, name: str, column: Any) -> np.ndarray:
+    """The column as float64 (nulls as NaN); a non-numeric entry is an error naming its row."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    if pa.types.is_integer(column.type) or pa.types.is_floating(column.type) or pa.types.is_null(column.type):
+        return np.asarray(pc.cast(column, pa.float64()).to_numpy(zero_copy_only=False), dtype=float)
+    for row, value in enumerate(column.to_pylist(), start=1):
+        if value is None or value == "":
+            continue
+        try:
+            float(value)
+        except (TypeError, ValueError):
+            raise DataFormatError(f"{path}: column {name!r}, row {row}: {value!r} is not a number") from None
+    values = [np.nan if v in (None, "") else float(v) for v in column.to_pylist()]
+    return np.asarray(values, dtype=float)
+
+
+def _pair(values: dict[str, np.ndarray], a: str, b: str, rows: np.ndarray) -> np.ndarray | None:
+    """Columns ``a`` and ``b`` at ``rows`` as an ``(n, 2)`` array (``None`` if the table lacks them)."""
+    return np.stack([values[a][rows], values[b][rows]], axis=1) if a in values else None
+
+
+def read_table(path: str | os.PathLike[str]) -> Table:
+    """Read and check a trajectory table (see the module docstring)."""
+    path = Path(path)
+    if not path.exists():
+        raise DataFormatError(f"{path}: no such file")
+    if path.is_dir():
+        raise DataFormatError(f"{path}: is a folder, not a table")
+    arrow = _read_arrow(path)
+    names = list(arrow.column_names)
+    missing = [c for c in REQUIRED if c not in names]
+    if missing:
+        raise DataFormatError(f"{path}: missing column(s) {', '.join(missing)} (have {', '.join(names)})")
+    unknown = [c for c in names if c not in COLUMNS]
+    if unknown:
+        raise DataFormatError(
+            f"{path}: unknown column(s) {', '.join(unknown)}; the columns are {', '.join(COLUMNS)}"
+        )
+    for a, b in OPTIONAL_PAIRS:
+        if (a in names) != (b in names):
+            raise DataFormatError(
+                f"{path}: column {a if a not in names else b!r} is missing: give {a} and {b}, or neither"
+            )
+    rows = arrow.num_rows
+    if rows == 0:
+        raise DataFormatError(f"{path}: the table has no rows")
+    ids = np.asarray(
+        [("" if v is None else str(v)) for v in arrow.column("traj_id").to_pylist()], dtype=object
+    )
+    values = {c: _numeric(path, c, arrow.column(c)) for c in names if c != "traj_id"}
+    for name, column in values.items():
+        bad = np.flatnonzero(np.isinf(column))
+        if bad.size:
+            row = int(bad[0])
+            raise DataFormatError(
+                f"{path}: column {name!r}, trajectory {ids[row]!r}, row {row + 1}: infinite value"
+            )
+    gap = np.zeros(rows, dtype=bool)
+    for column in values.values():
+        gap |= np.isnan(column)
+    gap |= ids == ""
+    keep = np.flatnonzero(~gap)
+    if keep.size == 0:
+        raise DataFormatError(f"{path}: every row has a missing value")
+    order = keep[np.lexsort((values["t"][keep], ids[keep].astype(str)))]
+    sorted_ids = ids[order].astype(str)
+    starts = np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]])
+    ends = np.r_[starts[1:], order.size]
+    trajectories = []
+    for a, b in zip(starts, ends, strict=True):
+        rows_of = order[a:b]
+        traj_id = str(sorted_ids[a])
+        t = values["t"][rows_of]
+        same = np.flatnonzero(np.diff(t) == 0)
+        if same.size:
+            r1, r2 = sorted(int(r) + 1 for r in rows_of[same[0] : same[0] + 2])
+            raise DataFormatError(
+                f"{path}: trajectory {traj_id!r}: rows {r1} and {r2} have the same time t = {t[same[0]]:g} s"
+            )
+        if t.size < MIN_SAMPLES:
+            raise DataFormatError(
+                f"{path}: trajectory {traj_id!r} has {t.size} sample(s) (row {int(rows_of[0]) + 1}); "
+                f"at least {MIN_SAMPLES} are needed"
+            )
+        pos, vel, force = (_pair(values, a_, b_, rows_of) for a_, b_ in (("x", "y"), *OPTIONAL_PAIRS))
+        trajectories.append(Trajectory(traj_id, t, pos, vel, force))
+    return Table(trajectories=trajectories, rows=rows, dropped=int(gap.sum()))
+
+
+@dataclasses.dataclass(frozen=True)
+class ImportSettings:
+    """What the table does not say: the body's known constants and how to split.
+
+    Attributes:
+        mass: dry mass ``M`` [kg]. area: reference area ``A`` [m²]. rho: fluid density [kg/m³].
+        volume: displaced volume ``V`` [m³] (default ``M / rho``, a floating body).
+        split: fractions of the trajectories for train, val and test (summing to 1).
+        seed: seed of the split's permutation.
+        time_dependent: whether models may let the flow depend on time.
+    """
+
+    mass: float
+    area: float
+    rho: float = 1000.0
+    volume: float | None = None
+    split: tuple[float, float, float] = (0.7, 0.2, 0.1)
+    seed: int = 0
+    time_dependent: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("mass", "area", "rho"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ConfigError(f"--{name} must be a number > 0, got {value!r}")
+        if self.volume is not None and not (np.isfinite(self.volume) and self.volume > 0):
+            raise ConfigError(f"--volume must be a number > 0, got {self.volume!r}")
+        if (
+            len(self.split) != 3
+            or any(not (f >= 0) for f in self.split)
+            or not np.isclose(sum(self.split), 1)
+        ):
+            raise ConfigError(
+                f"--split must be three fractions summing to 1 (e.g. 70/20/10), got {self.split}"
+            )
+        if self.seed < 0:
+            raise ConfigError(f"--seed must be >= 0, got {self.seed}")
+
+
+def parse_split(text: str) -> tuple[float, float, float]:
+    """``"70/20/10"`` → ``(0.7, 0.2, 0.1)``; the parts are percentages summing to 100."""
+    parts = text.split("/")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or any(not (v >= 0) for v in values) or not np.isclose(sum(values), 100):
+        raise ConfigError(f"--split must be three percentages summing to 100, like 70/20/10; got {text!r}")
+    return (values[0] / 100, values[1] / 100, values[2] / 100)
+
+
+def split_counts(n: int, fractions: tuple[float, float, float]) -> tuple[int, int, int]:
+    """Trajectories per split: at least one each, the rest by ``fractions`` (largest remainders)."""
+    if n < 3:
+        raise DataFormatError(f"the table has {n} trajectory(ies); train, val and test need at least 3")
+    exact = np.asarray(fractions) * n
+    counts = np.maximum(np.floor(exact).astype(int), 1)
+    while counts.sum() > n:
+        counts[int(np.argmax(counts))] -= 1
+    order = np.argsort(-(exact - np.floor(exact)), kind="stable")
+    i = 0
+    while counts.sum() < n:
+        counts[order[i % 3]] += 1
+        i += 1
+    return int(counts[0]), int(counts[1]), int(counts[2])
+
+
+def _pad(a: np.ndarray, size: int) -> np.ndarray:
+    """``a`` ``(n, ...)`` extended to ``size`` rows by repeating its last row."""
+    return np.concatenate([a, np.repeat(a[-1:], size - a.shape[0], axis=0)], axis=0)
+
+
+def _split_of(items: list[dict[str, np.ndarray]]) -> Split:
+    size = max(item["t"].size for item in items)
+    t = np.stack(
+        [
+            np.r_[item["t"], item["t"][-1] + PAD_STEP * np.arange(1, size - item["t"].size + 1)]
+            for item in items
+        ]
+    )
+    stack = lambda key: np.stack([_pad(item[key], size) for item in items])  # noqa: E731
+    states = stack("states")
+    derivs = stack("derivs")
+    for i, item in enumerate(items):  # padding has no motion
+        derivs[i, item["t"].size :] = 0.0
+    lengths = np.asarray([item["t"].size for item in items], dtype=np.int64)
+    return Split(
+        t=t,
+        states=states,
+        states_clean=states.copy(),
+        derivs=derivs,
+        forces=stack("forces"),
+        actuation=np.zeros((len(items), 2, 3, 3)),
+        lengths=lengths,
+    )
+
+
+def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -> Dataset:
+    """A data set of ``table``'s trajectories (see the module docstring).
+
+    Times are shifted so that the earliest sample of the table is at ``t = 0`` (the shift is kept
+    in the ``import`` record); ``states_clean`` holds the observed states (the truth is unknown),
+    ``derivs`` the estimated ``(vx, vy, ax, ay)``.
+    """
+    trajs = table.trajectories
+    has_vel = trajs[0].vel is not None
+    has_force = trajs[0].force is not None
+    t0 = min(float(tr.t[0]) for tr in trajs)
+    series = [(tr.t, tr.pos[:, k]) for tr in trajs for k in range(2)]
+    pos_noise = noise_level(series)
+    vel_noise = noise_level([(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]) if has_vel else None
+    items = []
+    for tr in trajs:
+        vel = np.empty_like(tr.pos)
+        acc = np.empty_like(tr.pos)
+        for k in range(2):
+            first, second = smooth_derivatives(tr.t, tr.pos[:, k], pos_noise)
+            if has_vel:
+                vel[:, k] = tr.vel[:, k]
+                acc[:, k] = smooth_derivatives(tr.t, tr.vel[:, k], vel_noise)[0]
+            else:
+                vel[:, k], acc[:, k] = first, second
+        items.append(
+            {
+                "t": tr.t - t0,
+                "states": np.concatenate([tr.pos, vel], axis=1),
+                "derivs": np.concatenate([vel, acc], axis=1),
+                "forces": tr.force if has_force else np.zeros_like(tr.pos),
+            }
+        )
+    counts = split_counts(len(items), settings.split)
+    perm = np.random.default_rng(settings.seed).permutation(len(items))
+    bounds = np.cumsum((0, *counts))
+    splits = {
+        name: _split_of([items[i] for i in np.sort(perm[bounds[k] : bounds[k + 1]])])
+        for k, name in enumerate(SPLITS)
+    }
+    steps = np.concatenate([np.diff(tr.t) for tr in trajs])
+    measured = ["positions", *(["velocities"] if has_vel else []), *(["forces"] if has_force else [])]
+    volume = settings.volume if settings.volume is not None else settings.mass / settings.rho
+    ids = {
+        name: [trajs[i].traj_id for i in np.sort(perm[bounds[k] : bounds[k + 1]])]
+        for k, name in enumerate(SPLITS)
+    }
+    record = {
+        "source": source,
+        "rows": table.rows,
+        "dropped_rows": table.dropped,
+        "trajectories": len(trajs),
+        "time_offset": t0,
+        "position_noise": pos_noise,
+        "velocity_noise": vel_noise,
+        "velocity": "measured" if has_vel else "quintic smoothing spline (sum of squared residuals = n σ²)",
+        "step_median": float(np.median(steps)),
+        "step_range": [float(steps.min()), float(steps.max())],
+        "traj_ids": ids,
+    }
+    return Dataset(
+        scenario=IMPORTED,
+        scenario_params={"time_dependent": bool(settings.time_dependent)},
+        body_params={"M": settings.mass, "rho": settings.rho, "A": settings.area, "V": volume},
+        seed=int(settings.seed),
+        dt=float(np.median(steps)),
+        actuation="recorded" if has_force else "none",
+        obs_noise=float(pos_noise),
+        version=__version__,
+        splits=splits,
+        extra={"measured": measured, "import": record},
+    )
+
+
+def observe(
+    dataset: Dataset,
+    *,
+    step: float,
+    jitter: float = 0.0,
+    noise: float = 0.0,
+    drop: float = 0.0,
+    velocities: bool = False,
+    forces: bool = True,
+    seed: int = 0,
+) -> dict[str, np.ndarray]:
+    """A table (columns by name, one row per sample, rows shuffled) of what an instrument would
+    record of a simulated, finely sampled ``dataset``: every trajectory of every split, sampled
+    about every ``step`` s with each interval drawn from ``step·U(1 − jitter, 1 + jitter)`` (the
+    nearest stored sample is taken, so the data set's ``dt`` must be much finer than ``step``),
+    positions (and velocities when ``velocities``) with Gaussian noise of std ``noise`` [m, m/s],
+    the known forces when ``forces``, and a fraction ``drop`` of the rows replaced by gaps (NaN
+    positions). The worked example and ``benchmarks/own_data.py`` make their tables so."""
+    rng = np.random.default_rng(seed)
+    columns: dict[str, list[np.ndarray]] = {c: [] for c in ("traj_id", "t", "x", "y", "vx", "vy", "Fx", "Fy")}
+    k = 0
+    for name in SPLITS:
+        split = dataset[name]
+        if not split.regular:
+            raise ConfigError("observe() needs a simulated data set (common sample times)")
+        t = split.t
+        for i in range(split.n_traj):
+            draws = step * rng.uniform(1 - jitter, 1 + jitter, int(2 * t[-1] / step) + 2)
+            wanted = np.concatenate([[0.0], np.cumsum(draws)])
+            idx = np.unique(np.searchsorted(t, wanted[wanted <= t[-1]]).clip(0, t.size - 1))
+            clean = split.states_clean[i, idx]
+            columns["traj_id"].append(np.full(idx.size, k))
+            columns["t"].append(t[idx])
+            for j, c in enumerate(("x", "y", "vx", "vy")):
+                columns[c].append(clean[:, j] + noise * rng.normal(size=idx.size))
+            columns["Fx"].append(split.forces[i, idx, 0])
+            columns["Fy"].append(split.forces[i, idx, 1])
+            k += 1
+    table = {c: np.concatenate(v) for c, v in columns.items()}
+    gaps = rng.random(table["t"].size) < drop
+    table["x"][gaps] = np.nan
+    table["y"][gaps] = np.nan
+    keep = [c for c in COLUMNS if (velocities or c not in ("vx", "vy")) and (forces or c not in ("Fx", "Fy"))]
+    order = rng.permutation(table["t"].size)
+    return {c: table[c][order] for c in keep}
+
+
+def write_table(columns: dict[str, np.ndarray], path: str | os.PathLike[str]) -> Path:
+    """Write a table of named columns as ``.csv`` or ``.parquet`` (by the suffix), atomically."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    arrow = pa.table({name: pa.array(values) for name, values in columns.items()})
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet"):
+        raise ConfigError(f"{path}: give a .csv or .parquet file name")
+    with atomic_output(path) as tmp:
+        if suffix == ".csv":
+            pacsv.write_csv(arrow, tmp)
+        else:
+            pq.write_table(arrow, tmp)
+    return path
+
+
+__all__ = [
+    "COLUMNS",
+    "ImportSettings",
+    "Table",
+    "Trajectory",
+    "parse_split",
+    "read_table",
+    "table_to_dataset",
+]

@@ -1,0 +1,250 @@
+"""Users' own trajectories: tables in, data sets with per-trajectory times out, and the estimates
+(noise level, velocities) that fill what the table lacks."""
+
+from __future__ import annotations
+
+import functools
+import operator
+
+import h5py
+import numpy as np
+import pytest
+
+from fhnn.cli.app import main
+from fhnn.data.dataset import Split, read_dataset, write_dataset
+from fhnn.data.derivatives import lagrange_residuals, noise_level, smooth_derivatives
+from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_table
+from fhnn.data.windows import Windows
+from fhnn.evaluation.metrics import irregular_metrics
+from fhnn.models.base import AbstractVectorField
+from fhnn.physics.dynamics import EquationsOfMotion
+
+from .conftest import small_dataset
+
+NOISE = 1e-3
+
+
+@pytest.fixture(scope="module")
+def fine():
+    """Actuated steady_vortex trajectories sampled every 0.01 s (to be observed irregularly)."""
+    return small_dataset("steady_vortex", n_traj=12, duration=6.0, test_duration=6.0, dt=0.01, seed=2)
+
+
+@pytest.fixture(scope="module")
+def imported(fine, tmp_path_factory):
+    """The table a tracker would record of ``fine`` (positions with 1 mm noise, times jittered by
+    ±30 % around 0.05 s, 5 % gaps, rows shuffled), imported with ``fhnn import``."""
+    folder = tmp_path_factory.mktemp("import")
+    table = observe(fine, step=0.05, jitter=0.3, noise=NOISE, drop=0.05, seed=1)
+    write_table(table, folder / "track.csv")
+    write_table(table, folder / "track.parquet")
+    for name in ("track.csv", "track.parquet"):
+        with pytest.raises(SystemExit) as info:
+            main(
+                [
+                    "import",
+                    str(folder / name),
+                    "-o",
+                    str(folder / f"{name}.h5"),
+                    "--mass",
+                    "10",
+                    "--area",
+                    "0.1",
+                    "-q",
+                ]
+            )
+        assert info.value.code == 0
+    return folder, table
+
+
+def test_import_keeps_every_sample_and_counts_the_gaps(imported) -> None:
+    folder, table = imported
+    data = read_dataset(folder / "track.csv.h5")
+    gaps = np.isnan(table["x"])
+    record = data.extra["import"]
+    assert record["rows"] == table["t"].size and record["dropped_rows"] == int(gaps.sum()) > 0
+    assert data.imported and data.measured == ("positions", "forces")
+    assert data.body_params == {"M": 10.0, "rho": 1000.0, "A": 0.1, "V": 0.01}
+    n_kept = 0
+    for name in ("train", "val", "test"):
+        split = data[name]
+        assert not split.regular and split.t.shape == (split.n_traj, split.n_times)
+        for i, traj in enumerate(data.extra["import"]["traj_ids"][name]):
+            rows = (table["traj_id"] == int(traj)) & ~gaps
+            order = np.argsort(table["t"][rows])
+            k = split.sample_counts[i]
+            assert k == rows.sum()
+            np.testing.assert_array_equal(split.times[i, :k], table["t"][rows][order])
+            np.testing.assert_array_equal(split.states[i, :k, 0], table["x"][rows][order])
+            np.testing.assert_array_equal(split.forces[i, :k, 1], table["Fy"][rows][order])
+            # padding: times go on by 1 µs, states repeat the last sample
+            np.testing.assert_allclose(np.diff(split.times[i, k - 1 :]), PAD_STEP, rtol=1e-6)
+            assert np.all(split.states[i, k:] == split.states[i, k - 1])
+            n_kept += k
+    assert n_kept == int((~gaps).sum())
+    assert sorted(functools.reduce(operator.iadd, record["traj_ids"].values(), [])) == sorted(
+        str(i) for i in range(12)
+    )
+
+
+def test_csv_and_parquet_give_the_same_data_set(imported) -> None:
+    folder, _ = imported
+    a, b = (read_dataset(folder / f"track.{s}.h5") for s in ("csv", "parquet"))
+    for name in ("train", "val", "test"):
+        for key, array in a[name].arrays().items():
+            np.testing.assert_array_equal(array, b[name].arrays()[key], err_msg=f"{name}/{key}")
+
+
+def test_noise_level_and_velocities_are_estimated_from_positions(fine, imported) -> None:
+    folder, _ = imported
+    data = read_dataset(folder / "track.csv.h5")
+    assert data.obs_noise == pytest.approx(NOISE, rel=0.1)
+    truth = observe(fine, step=0.05, jitter=0.3, noise=0.0, drop=0.05, seed=1, velocities=True)
+    errors = []
+    for name in ("train", "val", "test"):
+        split = data[name]
+        for i, traj in enumerate(data.extra["import"]["traj_ids"][name]):
+            rows = (truth["traj_id"] == int(traj)) & ~np.isnan(truth["x"])
+            order = np.argsort(truth["t"][rows])
+            k = split.sample_counts[i]
+            v_true = np.stack([truth["vx"][rows][order], truth["vy"][rows][order]], axis=1)
+            errors.append((split.states[i, 5 : k - 5, 2:] - v_true[5:-5]).ravel())
+    rms = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
+    # 1 mm noise at ~0.05 s: a finite difference would be ~28 mm/s off; the spline is ~10× better
+    assert rms < 4e-3, rms
+
+
+def test_lagrange_residuals_vanish_for_a_cubic_at_irregular_times(rng) -> None:
+    t = np.cumsum(rng.uniform(0.02, 0.08, 200))
+    z = 0.3 - 1.2 * t + 0.7 * t**2 - 0.05 * t**3
+    assert np.max(np.abs(lagrange_residuals(t, z))) < 1e-9
+    noise = 0.01 * rng.normal(size=(20, t.size))
+    assert noise_level([(t, z + n) for n in noise]) == pytest.approx(0.01, rel=0.05)
+
+
+def test_spline_derivatives_of_a_smooth_signal(rng) -> None:
+    t = np.cumsum(rng.uniform(0.035, 0.065, 400))
+    z = np.sin(0.7 * t) + 1e-3 * rng.normal(size=t.size)
+    first, second = smooth_derivatives(t, z, 1e-3)
+    inner = slice(20, -20)
+    assert np.sqrt(np.mean((first - 0.7 * np.cos(0.7 * t))[inner] ** 2)) < 3e-3
+    assert np.sqrt(np.mean((second + 0.49 * np.sin(0.7 * t))[inner] ** 2)) < 0.05
+
+
+def _ragged(split: Split, rng: np.random.Generator) -> Split:
+    """``split`` with each trajectory keeping its own random subset of samples (first kept)."""
+    rows, T = [], 0
+    for i in range(split.n_traj):
+        keep = np.r_[0, np.flatnonzero(rng.random(split.n_times - 1) < 0.6) + 1]
+        rows.append(keep[: len(keep) - i])  # unequal lengths
+        T = max(T, rows[-1].size)
+    pad = lambda a, k: np.concatenate([a[k], np.repeat(a[k][-1:], T - k.size, axis=0)])  # noqa: E731
+    t = np.stack([np.r_[split.t[k], split.t[k][-1] + PAD_STEP * np.arange(1, T - k.size + 1)] for k in rows])
+    take = lambda a: np.stack([pad(a[i], k) for i, k in enumerate(rows)])  # noqa: E731
+    return Split(
+        t=t,
+        states=take(split.states),
+        states_clean=take(split.states_clean),
+        derivs=take(split.derivs),
+        forces=take(split.forces),
+        actuation=split.actuation,
+        lengths=np.asarray([k.size for k in rows]),
+    )
+
+
+def test_windows_of_irregular_trajectories_stay_inside_each_trajectory(fine, rng) -> None:
+    split = _ragged(fine.train, rng)
+    windows = Windows.of(split)
+    assert len(windows) == int(np.sum(split.sample_counts - 1))
+    dt = windows.t[:, 1] - windows.t[:, 0]
+    assert dt.min() >= 0.01 - 1e-12  # no padding interval (1 µs) inside a window
+    for p in np.random.default_rng(0).choice(len(windows), 50, replace=False):
+        i = windows.traj[p]
+        k = np.flatnonzero(split.times[i] == windows.t[p, 0])[0]
+        np.testing.assert_array_equal(windows.s[p], split.states[i, k : k + 2])
+
+
+class _Truth(AbstractVectorField):
+    eom: EquationsOfMotion
+
+    def __call__(self, state, t, force):
+        return self.eom(state, t, force)
+
+
+def test_rollout_at_each_trajectorys_own_times_reproduces_the_truth(fine, rng, tmp_path) -> None:
+    split = _ragged(fine.test, rng)
+    ro = _Truth(fine.equations()).rollout(split, until=4.0)
+    assert ro.t.ndim == 2 and ro.mask is not None and ro.ok.all()
+    real = ro.mask
+    err = np.abs(ro.states - split.states_clean[:, : ro.t.shape[1]])[real]
+    assert err.max() < 1e-7, err.max()
+    assert np.all(ro.t[real] - ro.t[real.nonzero()[0], 0] <= 4.0 + 1e-9)
+    # the ragged split survives the file format
+    dataset = type(fine)(**{**fine.__dict__, "splits": {**fine.splits, "test": split}})
+    back = read_dataset(write_dataset(dataset, tmp_path / "ragged.h5"))
+    np.testing.assert_array_equal(back.test.lengths, split.lengths)
+    np.testing.assert_array_equal(back.test.t, split.t)
+
+
+def test_version_1_files_are_still_read(fine, tmp_path) -> None:
+    path = write_dataset(fine, tmp_path / "v1.h5")
+    with h5py.File(path, "r+") as f:
+        f.attrs["format_version"] = 1
+    back = read_dataset(path)
+    assert back.train.regular and back.measured == ("positions", "velocities", "forces", "derivatives")
+    np.testing.assert_array_equal(back.train.states, fine.train.states)
+
+
+def test_irregular_metrics_count_samples_up_to_the_horizon() -> None:
+    t = np.array([[0.0, 0.4, 1.1, 1.9, 2.0 + 1e-6], [5.0, 5.5, 6.0, 7.0, 8.0]])
+    mask = np.array([[True, True, True, True, False], [True] * 5])
+    truth = np.zeros((2, 5, 4))
+    pred = np.zeros((2, 5, 4))
+    pred[0, :, 0] = [0.0, 0.1, 0.2, 0.3, 99.0]  # padding never read
+    pred[1, :, 1] = [0.0, 0.4, 0.0, 0.2, 0.0]
+    m = irregular_metrics(pred, truth, t, mask, 2.0)
+    # trajectory 0 ends at 1.9 s (scored: within half a median step of 2 s), trajectory 1 at 8 s
+    assert m["n_traj"] == 2
+    sq = np.array([0.1, 0.2, 0.3, 0.4, 0.0, 0.2]) ** 2  # (0.4, 1.1, 1.9 s) and (5.5, 6, 7 s)
+    assert m["rmse_pos"] == pytest.approx(np.sqrt(np.sum(sq) / (2 * sq.size)))
+    assert m["fde"] == pytest.approx((0.3 + 0.2) / 2)
+    pred[1, 2, 0] = np.inf
+    assert irregular_metrics(pred, truth, t, mask, 2.0)["diverged"] == 1
+    assert m["within_eps"] == 0.0
+    with pytest.raises(ValueError, match="exceeds every trajectory's length"):
+        irregular_metrics(pred, truth, t, mask, 5.0)
+
+
+def test_split_counts_give_every_split_a_trajectory() -> None:
+    assert split_counts(3, (0.7, 0.2, 0.1)) == (1, 1, 1)
+    assert split_counts(10, (0.7, 0.2, 0.1)) == (7, 2, 1)
+    assert sum(split_counts(71, (0.7, 0.2, 0.1))) == 71
+
+
+def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
+    folder, _ = imported
+    data, run = folder / "track.csv.h5", folder / "run"
+    with pytest.raises(SystemExit) as info:
+        main(["train", str(data), "-o", str(run), "--steps", "30"])
+    assert info.value.code == 0
+    assert "derivatives were estimated, not measured: the derivative loss is off" in capsys.readouterr().err
+    for args in (["evaluate", str(run), "--horizons", "1,3", "--json"], ["inspect", str(run)]):
+        with pytest.raises(SystemExit) as info:
+            main(args)
+        assert info.value.code == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "no ground truth: these are estimates, not recovery errors" in out
+    assert (run / "flow.png").exists() and (run / "coefficients.png").exists()
+    assert read_dataset(data).extra["import"]["traj_ids"]  # unchanged by training
+
+
+def test_read_table_groups_shuffled_rows_by_trajectory_in_time_order(imported) -> None:
+    folder, table = imported
+    read = read_table(folder / "track.parquet")
+    assert [tr.traj_id for tr in read.trajectories] == sorted(str(i) for i in range(12))
+    for tr in read.trajectories:
+        rows = (table["traj_id"] == int(tr.traj_id)) & ~np.isnan(table["x"])
+        order = np.argsort(table["t"][rows])
+        np.testing.assert_array_equal(tr.t, table["t"][rows][order])
+        np.testing.assert_array_equal(tr.pos[:, 1], table["y"][rows][order])
+        assert tr.vel is None and tr.force.shape == (rows.sum(), 2)
