@@ -6,7 +6,9 @@ from __future__ import annotations
 import functools
 import operator
 
+import equinox as eqx
 import h5py
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -17,7 +19,10 @@ from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_t
 from fhnn.data.windows import Windows
 from fhnn.evaluation.metrics import irregular_metrics
 from fhnn.models.base import AbstractVectorField
+from fhnn.physics.actuation import forcing
 from fhnn.physics.dynamics import EquationsOfMotion
+from fhnn.physics.integrators import rk4_step
+from fhnn.training.run import Run
 
 from .conftest import small_dataset
 
@@ -225,9 +230,13 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     folder, _ = imported
     data, run = folder / "track.csv.h5", folder / "run"
     with pytest.raises(SystemExit) as info:
-        main(["train", str(data), "-o", str(run), "--steps", "30"])
+        main(["train", str(data), "-o", str(run), "--steps", "30", "--set", "train.shoot=8"])
     assert info.value.code == 0
-    assert "derivatives were estimated, not measured: the derivative loss is off" in capsys.readouterr().err
+    said = " ".join(capsys.readouterr().err.split())
+    assert "velocities and derivatives were estimated, not measured: training with" in said
+    assert "train.w_deriv=0.0, train.w_step=0.0, train.batch_size=32 (--set wins)" in said
+    config = Run.load(run).train_config
+    assert (config.shoot, config.w_deriv, config.w_step, config.batch_size) == (8, 0.0, 0.0, 32)
     for args in (["evaluate", str(run), "--horizons", "1,3", "--json"], ["inspect", str(run)]):
         with pytest.raises(SystemExit) as info:
             main(args)
@@ -248,3 +257,27 @@ def test_read_table_groups_shuffled_rows_by_trajectory_in_time_order(imported) -
         np.testing.assert_array_equal(tr.t, table["t"][rows][order])
         np.testing.assert_array_equal(tr.pos[:, 1], table["y"][rows][order])
         assert tr.vel is None and tr.force.shape == (rows.sum(), 2)
+
+
+def test_multi_step_loss_rolls_rk4_through_each_windows_own_times(fine, rng) -> None:
+    split = _ragged(fine.train, rng)
+    truth = _Truth(fine.equations())
+    pairs, windows = Windows.of(split, 2), Windows.of(split, 5)
+    scales = (jnp.ones(4), jnp.asarray([1e-3, 2e-3, 0.05, 0.07]))
+    pick = lambda w, n: {k: v[:n] for k, v in w.as_jax().items()}  # noqa: E731
+    two, five = truth.loss_terms(pick(pairs, 64), scales), truth.loss_terms(pick(windows, 64), scales)
+    assert "shoot" not in two and set(five) >= {"deriv", "step", "shoot"}
+    # the truth's only error is RK4's over 0.01–0.2 s steps
+    assert float(five["shoot"]) < 1e-8 and float(five["step"]) < 1e-8
+    wrong = _Truth(eqx.tree_at(lambda e: e.mass, fine.equations(), 12.0))
+    batch = pick(windows, 12)
+    shoot = float(wrong.loss_terms(batch, scales)["shoot"])
+    # an independent loop over windows and steps
+    sq = []
+    for p in range(12):
+        f = lambda x, tt, p=p: wrong(x, tt, forcing(batch["act"][p], tt, batch["t"][p], batch["dforce"][p]))  # noqa: E731
+        s = batch["s"][p, 0]
+        for k in range(1, 5):
+            s = rk4_step(f, s, batch["t"][p, k - 1], batch["t"][p, k] - batch["t"][p, k - 1])
+            sq.append(np.asarray((s[:2] - batch["s"][p, k, :2]) / scales[1][:2]) ** 2)
+    assert shoot == pytest.approx(float(np.mean(sq)), rel=1e-10) and shoot > 1e-6

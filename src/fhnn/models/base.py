@@ -30,7 +30,7 @@ import numpy as np
 
 from fhnn.data.dataset import Split, samples_until
 from fhnn.physics.actuation import forcing
-from fhnn.physics.integrators import rk4_step, solve_forced_batch
+from fhnn.physics.integrators import rk4_solve, rk4_step, solve_forced_batch
 
 Array = jax.Array
 
@@ -138,18 +138,26 @@ class AbstractVectorField(AbstractModel):
 
     def loss_terms(self, batch: dict[str, Array], scales: tuple[Array, Array]) -> dict[str, Array]:
         """``{"deriv": MSE of f(s_0) against the true derivative, "step": MSE of one RK4 step
-        against s_1}`` (both normalised by ``scales``) plus :meth:`regularization`."""
+        against s_1}`` (both normalised by ``scales``) plus :meth:`regularization`; on windows of
+        ``W ≥ 3`` samples also ``"shoot"``: RK4 from ``s_0`` through every sample time of the
+        window, the MSE of the predicted positions at samples ``1 … W−1`` (normalised by the
+        positions' one-step scale)."""
         deriv_scale, step_scale = scales
+        width = batch["s"].shape[1]
 
         def one(s: Array, t: Array, a: Array, r: Array) -> tuple[Array, Array]:
             f = lambda x, tt: self(x, tt, forcing(a, tt, t, r))  # noqa: E731
-            return f(s[0], t[0]), rk4_step(f, s[0], t[0], t[1] - t[0])
+            if width == 2:
+                return f(s[0], t[0]), rk4_step(f, s[0], t[0], t[1] - t[0])[None]
+            return f(s[0], t[0]), rk4_solve(f, s[0], t)[1:]
 
-        pred_d, pred_next = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
+        pred_d, pred_path = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
         terms = {
             "deriv": jnp.mean(((pred_d - batch["deriv"][:, 0]) / deriv_scale) ** 2),
-            "step": jnp.mean(((pred_next - batch["s"][:, 1]) / step_scale) ** 2),
+            "step": jnp.mean(((pred_path[:, 0] - batch["s"][:, 1]) / step_scale) ** 2),
         }
+        if width > 2:
+            terms["shoot"] = jnp.mean(((pred_path[..., :2] - batch["s"][:, 1:, :2]) / step_scale[:2]) ** 2)
         terms.update(self.regularization(batch["s"][:, 0], batch["t"][:, 0]))
         return terms
 

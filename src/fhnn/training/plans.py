@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
 from fhnn.training.trainer import TrainConfig
@@ -70,6 +71,41 @@ PLANS: dict[str, TrainingPlan] = {
 }
 
 
+#: Multi-step window [samples] of the loss on positions used when velocities were estimated.
+ESTIMATED_VELOCITY_SHOOT = 40
+
+
+def data_settings(dataset: Dataset) -> dict[str, Any]:
+    """Training settings that a data set's measured fields call for (``fhnn train`` applies them
+    above a plan and below any setting given):
+
+    - derivatives estimated, not measured: no derivative loss (``train.w_deriv=0``) — its
+      targets would be the estimates;
+    - velocities estimated too: the multi-step loss on positions over windows of
+      :data:`ESTIMATED_VELOCITY_SHOOT` samples (2 s at 0.05 s) in batches of 32 windows, no
+      one-step loss (whose velocity targets are estimates), and 4,000 Adam steps (a step costs
+      ~80 ms on 2 cores, 7× a one-step-loss step). Measured on issue 14's data
+      (``benchmarks/own_data.py``: ``steady_vortex``, positions only with 1 mm noise, times
+      jittered ±30 % around 0.05 s), 3,000 Adam steps, recovery against the simulator's truth over
+      the training region: masses 0.75 / 0.79 % and flow 0.99 % off, against 2.9 / 2.0 % and
+      5.1 % for the one-step loss alone after 20,000 steps; windows of 20 samples in batches of
+      64 (the same cost): 0.96 / 1.18 % and 1.03 %.
+    """
+    out: dict[str, Any] = {}
+    if "derivatives" not in dataset.measured:
+        out["train.w_deriv"] = 0.0
+    if "velocities" not in dataset.measured:
+        out.update(
+            {
+                "train.shoot": ESTIMATED_VELOCITY_SHOOT,
+                "train.w_step": 0.0,
+                "train.batch_size": 32,
+                "train.steps": 4000,
+            }
+        )
+    return out
+
+
 def get_plan(name: str) -> TrainingPlan:
     """The plan ``name``; an unknown name is a :class:`ConfigError` listing the plans."""
     if name not in PLANS:
@@ -77,4 +113,4 @@ def get_plan(name: str) -> TrainingPlan:
     return PLANS[name]
 
 
-__all__ = ["PLANS", "TrainingPlan", "get_plan"]
+__all__ = ["ESTIMATED_VELOCITY_SHOOT", "PLANS", "TrainingPlan", "data_settings", "get_plan"]

@@ -35,7 +35,7 @@ from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, 
 from fhnn.data.dataset import Dataset, read_dataset
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import check_new_folder, commit_files, recover_files
-from fhnn.models.base import AbstractModel
+from fhnn.models.base import AbstractModel, AbstractVectorField
 from fhnn.models.registry import MODELS
 from fhnn.runtime import __version__
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
@@ -289,9 +289,11 @@ class Run:
         checkpointing at every validation when ``save``; ``callback(state, record)`` at each,
         ``on_step(phase, step)`` between them (:class:`~fhnn.training.trainer.Trainer`)."""
         kind = MODELS[self.kind]
-        trainer = Trainer(
-            self.train_config, dataset.train, dataset.val, window=self.skeleton().window, on_step=on_step
-        )
+        skeleton = self.skeleton()
+        window = skeleton.window
+        if isinstance(skeleton, AbstractVectorField):  # a vector field takes the multi-step loss
+            window = max(window, self.train_config.shoot)
+        trainer = Trainer(self.train_config, dataset.train, dataset.val, window=window, on_step=on_step)
         if kind.fit is not None:  # a one-shot fit (a regression), not gradient descent
             return self._fit(trainer, dataset, save)
         if self.state is None:

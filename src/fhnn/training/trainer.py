@@ -76,6 +76,13 @@ class TrainConfig(Config):
         lbfgs_steps: quasi-Newton polish iterations after Adam (0: none).
         lbfgs_pairs: training pairs (a seeded subset) in the quasi-Newton phases.
         lbfgs_memory: curvature pairs kept by L-BFGS.
+        shoot: samples per example of the multi-step (multiple-shooting) loss on positions (0 or
+            2: off). With ``k ≥ 3`` every example is ``k`` consecutive samples of a trajectory,
+            each with its own times: RK4 from the first, one step per sample interval, and the
+            predicted positions are compared with the observed ones at every later sample — a
+            loss that needs neither measured velocities nor derivatives (``fhnn train`` turns it
+            on for data whose velocities were estimated).
+        w_shoot: weight of the multi-step loss.
         stop_rising: the Adam phase ends early once the validation loss has risen at this many
             validations in a row (0: never); the polish, if any, then starts from the best model,
             as it always does. Six rises in a row — seven
@@ -102,12 +109,16 @@ class TrainConfig(Config):
     lbfgs_pairs: int = 8192
     lbfgs_memory: int = 100
     stop_rising: int = 6
+    shoot: int = 0
+    w_shoot: float = 1.0
 
     def validate(self) -> None:
         check_positive(self, "batch_size", "lr", "lr_decay", "val_every", "val_pairs", "lbfgs_pairs")
         check_positive(self, "lbfgs_memory")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
-        check_nonnegative(self, "steps", "warmup_steps", "stop_rising")
+        check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot")
+        if self.shoot == 1:
+            raise ConfigError("training: shoot must be 0 (off) or at least 2 samples, got 1")
         if any(not 0 < b < 1 for b in self.lr_boundaries):
             raise ConfigError(f"training: lr_boundaries must lie in (0, 1), got {self.lr_boundaries}")
 
@@ -140,8 +151,8 @@ class TrainConfig(Config):
 
 #: Fields read by the compiled Adam step and by the quasi-Newton iteration (see :meth:`TrainConfig.only`).
 ADAM_FIELDS = ("steps", "batch_size", "lr", "lr_boundaries", "lr_decay", "w_deriv", "w_step")
-ADAM_FIELDS += ("lambda_flow", "flow_anneal")
-QUASI_NEWTON_FIELDS = ("w_deriv", "w_step", "lbfgs_memory")
+ADAM_FIELDS += ("lambda_flow", "flow_anneal", "w_shoot")
+QUASI_NEWTON_FIELDS = ("w_deriv", "w_step", "w_shoot", "lbfgs_memory")
 
 #: Adam steps without the flow penalty it takes to gain a second compiled step back: the step
 #: without it is 1.8 ms faster on FHNN at batch 256 and compiles in ~5 s (training_speed.py).
@@ -159,9 +170,9 @@ def loss_terms(
 
 
 def data_loss(terms: dict[str, Array], config: TrainConfig) -> Array:
-    """Weighted sum of the data terms: ``w_deriv·deriv + w_step·step`` plus any model-specific
+    """Weighted sum of the data terms: ``w_deriv·deriv + w_step·step + w_shoot·shoot`` plus any model-specific
     objective term (weight 1); regularisers excluded."""
-    weights = {"deriv": config.w_deriv, "step": config.w_step}
+    weights = {"deriv": config.w_deriv, "step": config.w_step, "shoot": config.w_shoot}
     return sum((weights.get(k, 1.0) * v for k, v in terms.items() if k not in REGULARIZERS), jnp.zeros(()))
 
 
