@@ -116,9 +116,25 @@ def import_speed(folder: Path) -> dict:
         "y": pos[..., 1].ravel(),
     }
     path = write_table(table, folder / "big.csv")
-    start = time.perf_counter()
-    run_cli("import", str(path), "-o", str(folder / "big.h5"), "--mass", "10", "--area", "0.1", "-q")
-    return {"rows": n * rows, "trajectories": n, "seconds": time.perf_counter() - start}
+    out: dict = {"rows": n * rows, "trajectories": n}
+    for smoother in ("spline", "kalman"):
+        (folder / "big.h5").unlink(missing_ok=True)
+        start = time.perf_counter()
+        run_cli(
+            "import",
+            str(path),
+            "-o",
+            str(folder / "big.h5"),
+            "--mass",
+            "10",
+            "--area",
+            "0.1",
+            "-q",
+            "--smoother",
+            smoother,
+        )
+        out[f"seconds_{smoother}"] = time.perf_counter() - start
+    return out
 
 
 def main() -> None:
@@ -127,6 +143,7 @@ def main() -> None:
     p.add_argument("--set", action="append", default=[], help="NAME=VALUE for fhnn train")
     p.add_argument("--data-seed", type=int, default=0)
     p.add_argument("--skip-speed", action="store_true")
+    p.add_argument("--smoother", default="spline", help="fhnn import --smoother")
     args = p.parse_args()
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -144,7 +161,11 @@ def main() -> None:
     csv = write_table(table, out / f"track_seed{args.data_seed}.csv")
     data = out / f"track_seed{args.data_seed}.h5"
     start = time.perf_counter()
-    run_cli("import", str(csv), "-o", str(data), "--mass", "10", "--area", str(fine.body_params["A"]), "-q")
+    data.unlink(missing_ok=True)
+    area = str(fine.body_params["A"])
+    run_cli(
+        "import", str(csv), "-o", str(data), "--mass", "10", "--area", area, "-q", "--smoother", args.smoother
+    )
     import_seconds = time.perf_counter() - start
     imported = read_dataset(data)
     record = imported.extra["import"]
@@ -161,6 +182,7 @@ def main() -> None:
             vel_err.append((split.states[i, :k, 2:] - true_v).ravel())
     vel_rms = float(np.sqrt(np.mean(np.concatenate(vel_err) ** 2)))
     tag = "_".join(s.replace("=", "").replace(".", "") for s in args.set) or "defaults"
+    tag += "" if args.smoother == "spline" else f"_{args.smoother}"
     run = out / f"run_seed{args.data_seed}_{tag}"
     sets = [x for s in args.set for x in ("--set", s)]
     start = time.perf_counter()
@@ -173,6 +195,7 @@ def main() -> None:
     errors = rollout_errors(run, imported, clean_positions(table_clean, imported, "test"), (1.0, 5.0))
     result = {
         "settings": args.set,
+        "smoother": args.smoother,
         "data_seed": args.data_seed,
         "import_seconds": import_seconds,
         "position_noise_seen": record["position_noise"],
@@ -213,8 +236,8 @@ def main() -> None:
     if "import_speed" in result:
         s = result["import_speed"]
         print(
-            f"import of {s['trajectories']} × {s['rows'] // s['trajectories']} rows: "
-            f"{s['seconds']:.1f} s (target 10 s)"
+            f"import of {s['trajectories']} × {s['rows'] // s['trajectories']} rows: spline "
+            f"{s['seconds_spline']:.1f} s, kalman {s['seconds_kalman']:.1f} s (target 10 s)"
         )
 
 

@@ -219,6 +219,10 @@ CASES = [
         ["import", "{ws}/good.csv", "-o", "{ws}/missing/i.h5", *B],
         "output folder '{ws}/missing' does not exist",
     ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--smoother", "x"],
+        "--smoother must be one of spline, kalman",
+    ),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--workers", "0"], "workers"),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "models=fhnn,gru"], "unknown name 'gru' in models"),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "data.n_traj=2"], "n_traj must be >= 3"),

@@ -14,7 +14,7 @@ import pytest
 
 from fhnn.cli.app import main
 from fhnn.data.dataset import Split, read_dataset, write_dataset
-from fhnn.data.derivatives import lagrange_residuals, noise_level, smooth_derivatives
+from fhnn.data.derivatives import lagrange_residuals, noise_level, rts_smooth, smooth_derivatives
 from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_table
 from fhnn.data.windows import Windows
 from fhnn.evaluation.metrics import irregular_metrics
@@ -127,10 +127,11 @@ def test_lagrange_residuals_vanish_for_a_cubic_at_irregular_times(rng) -> None:
     assert noise_level([(t, z + n) for n in noise]) == pytest.approx(0.01, rel=0.05)
 
 
-def test_spline_derivatives_of_a_smooth_signal(rng) -> None:
+@pytest.mark.parametrize("smoother", ["spline", "kalman"])
+def test_derivatives_of_a_smooth_signal_at_irregular_times(rng, smoother) -> None:
     t = np.cumsum(rng.uniform(0.035, 0.065, 400))
     z = np.sin(0.7 * t) + 1e-3 * rng.normal(size=t.size)
-    first, second = smooth_derivatives(t, z, 1e-3)
+    ((first, second),) = smooth_derivatives([(t, z)], 1e-3, smoother)
     inner = slice(20, -20)
     assert np.sqrt(np.mean((first - 0.7 * np.cos(0.7 * t))[inner] ** 2)) < 3e-3
     assert np.sqrt(np.mean((second + 0.49 * np.sin(0.7 * t))[inner] ** 2)) < 0.05
@@ -281,3 +282,19 @@ def test_multi_step_loss_rolls_rk4_through_each_windows_own_times(fine, rng) -> 
             s = rk4_step(f, s, batch["t"][p, k - 1], batch["t"][p, k] - batch["t"][p, k - 1])
             sq.append(np.asarray((s[:2] - batch["s"][p, k, :2]) / scales[1][:2]) ** 2)
     assert shoot == pytest.approx(float(np.mean(sq)), rel=1e-10) and shoot > 1e-6
+
+
+def test_kalman_smoother_ignores_padding_and_recovers_a_quadratic(rng) -> None:
+    t = np.cumsum(rng.uniform(0.03, 0.07, 60))
+    z = 0.2 + 0.5 * t - 0.3 * t**2  # zero jerk: the smoother's model holds exactly
+    args = (jnp.asarray(1e-4), jnp.asarray([1e-6]), jnp.asarray(0.05))
+    outs = []
+    for pad in (0, 7, 196):
+        tp, zp = np.r_[t, np.full(pad, t[-1])], np.r_[z, np.full(pad, z[-1])]
+        mask = np.r_[np.ones(t.size), np.zeros(pad)]
+        out = rts_smooth(jnp.asarray(tp[None]), jnp.asarray(zp[None]), jnp.asarray(mask[None]), *args)
+        outs.append(np.asarray(out)[0, : t.size])
+    np.testing.assert_allclose(outs[1], outs[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(outs[2], outs[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(outs[0][:, 1], 0.5 - 0.6 * t, atol=1e-6)
+    np.testing.assert_allclose(outs[0][:, 2], -0.6, atol=1e-5)

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split
-from fhnn.data.derivatives import noise_level, smooth_derivatives
+from fhnn.data.derivatives import SMOOTHERS, noise_level, smooth_derivatives
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import atomic_output
 from fhnn.runtime import __version__
@@ -188,6 +188,7 @@ class ImportSettings:
         split: fractions of the trajectories for train, val and test (summing to 1).
         seed: seed of the split's permutation.
         time_dependent: whether models may let the flow depend on time.
+        smoother: the velocity estimator (:data:`~fhnn.data.derivatives.SMOOTHERS`).
     """
 
     mass: float
@@ -197,8 +198,11 @@ class ImportSettings:
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)
     seed: int = 0
     time_dependent: bool = False
+    smoother: str = "spline"
 
     def __post_init__(self) -> None:
+        if self.smoother not in SMOOTHERS:
+            raise ConfigError(f"--smoother must be one of {', '.join(SMOOTHERS)}, got {self.smoother!r}")
         for name in ("mass", "area", "rho"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -289,15 +293,21 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     series = [(tr.t, tr.pos[:, k]) for tr in trajs for k in range(2)]
     pos_noise = noise_level(series)
     vel_noise = noise_level([(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]) if has_vel else None
+    # every series at once: (velocity, acceleration) of each position, or the acceleration of
+    # each measured velocity
+    if has_vel:
+        velocities = [(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]
+        rates = smooth_derivatives(velocities, vel_noise, settings.smoother)
+    else:
+        rates = smooth_derivatives(series, pos_noise, settings.smoother)
     items = []
-    for tr in trajs:
+    for i, tr in enumerate(trajs):
         vel = np.empty_like(tr.pos)
         acc = np.empty_like(tr.pos)
         for k in range(2):
-            first, second = smooth_derivatives(tr.t, tr.pos[:, k], pos_noise)
+            first, second = rates[2 * i + k]
             if has_vel:
-                vel[:, k] = tr.vel[:, k]
-                acc[:, k] = smooth_derivatives(tr.t, tr.vel[:, k], vel_noise)[0]
+                vel[:, k], acc[:, k] = tr.vel[:, k], first
             else:
                 vel[:, k], acc[:, k] = first, second
         items.append(
@@ -307,6 +317,13 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
                 "derivs": np.concatenate([vel, acc], axis=1),
                 "forces": tr.force if has_force else np.zeros_like(tr.pos),
             }
+        )
+    bad = [
+        tr.traj_id for tr, item in zip(trajs, items, strict=True) if not np.all(np.isfinite(item["derivs"]))
+    ]
+    if bad:  # never write what the estimator could not give
+        raise DataFormatError(
+            f"velocity estimates are not finite for trajectory {bad[0]!r} ({len(bad)} in all)"
         )
     counts = split_counts(len(items), settings.split)
     perm = np.random.default_rng(settings.seed).permutation(len(items))
@@ -330,7 +347,9 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         "time_offset": t0,
         "position_noise": pos_noise,
         "velocity_noise": vel_noise,
-        "velocity": "measured" if has_vel else "quintic smoothing spline (sum of squared residuals = n σ²)",
+        "velocity": "measured"
+        if has_vel
+        else f"{settings.smoother} smoother at the noise level (RMS residual = σ)",
         "step_median": float(np.median(steps)),
         "step_range": [float(steps.min()), float(steps.max())],
         "traj_ids": ids,
