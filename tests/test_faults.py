@@ -31,9 +31,14 @@ from fhnn.training.trainer import TrainConfig, stop_reason
 
 from .conftest import small_dataset
 
+#: The child takes Ctrl-C as a terminal's process does: a suite started as a background job of a
+#: non-interactive shell passes SIGINT down ignored, and a Python started so never raises
+#: KeyboardInterrupt — the interrupts these tests deliver would be lost.
+_MAIN = "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); from fhnn.cli.app import main; main()"
+
 
 def _fhnn(*args: str) -> list[str]:
-    return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
+    return [sys.executable, "-c", _MAIN, *args]
 
 
 def _env(fault: str | None = None) -> dict[str, str]:
