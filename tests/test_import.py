@@ -244,6 +244,10 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
         assert info.value.code == 0, capsys.readouterr().err
     out = capsys.readouterr().out
     assert "no ground truth: these are estimates, not recovery errors" in out
+    with pytest.raises(SystemExit):
+        main(["info", str(data)])
+    said = " ".join(capsys.readouterr().out.split())
+    assert "coverage of the observed states" in said and "position noise seen" in said
     assert (run / "flow.png").exists() and (run / "coefficients.png").exists()
     assert read_dataset(data).extra["import"]["traj_ids"]  # unchanged by training
 

@@ -827,7 +827,8 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
     for name, s in splits.items():
         sizes.add_row(name, str(s["n_traj"]), str(s["n_times"]), _fmt(s["duration"]))
     stdout.print(sizes)
-    cover = Table(title="coverage of the clean states (min – max)", title_justify="left")
+    states = "observed states" if summary["imported"] else "clean states"  # no truth in measured data
+    cover = Table(title=f"coverage of the {states} (min – max)", title_justify="left")
     cover.add_column("quantity")
     for name in splits:
         cover.add_column(name, justify="right", no_wrap=True)
