@@ -46,6 +46,17 @@ def check_new_folder(folder: str | os.PathLike[str]) -> Path:
     return check_writable_folder(folder if folder.is_dir() else folder.parent)
 
 
+def check_input_file(path: str | os.PathLike[str], kind: str) -> Path:
+    """``path`` as a :class:`Path` if it is an existing file; else :class:`DataFormatError`
+    saying it is missing or a folder (``kind``: what the file should be, e.g. "a data file")."""
+    path = Path(path)
+    if not path.exists():
+        raise DataFormatError(f"{path}: no such file")
+    if path.is_dir():
+        raise DataFormatError(f"{path}: is a folder, not {kind}")
+    return path
+
+
 def check_output_path(path: str | os.PathLike[str]) -> Path:
     """Raise :class:`DataFormatError` unless ``path`` can be written as a file: its folder exists
     and is writable, and the path is not a folder or a read-only file."""

@@ -40,7 +40,7 @@ import h5py
 import numpy as np
 
 from fhnn.errors import DataFormatError
-from fhnn.files import atomic_output
+from fhnn.files import atomic_output, check_input_file
 from fhnn.physics.actuation import force_residual
 from fhnn.physics.body import Body
 from fhnn.physics.dynamics import EquationsOfMotion
@@ -139,16 +139,6 @@ class Split:
     def duration(self) -> float:
         """The longest trajectory's duration [s]."""
         return float(np.max(self.end_times - self.times[:, 0]))
-
-    def common_t(self, what: str) -> np.ndarray:
-        """The shared sample times ``(T,)``; :class:`DataFormatError` naming ``what`` needs them
-        where the trajectories have their own times or lengths."""
-        if not self.regular:
-            raise DataFormatError(
-                f"{what} needs trajectories sampled at common times; this data set has each "
-                "trajectory's own times (imported data)"
-            )
-        return self.t
 
     def arrays(self) -> dict[str, np.ndarray]:
         out = {name: getattr(self, name) for name in ARRAYS}
@@ -298,11 +288,7 @@ def write_dataset(dataset: Dataset, path: str | os.PathLike[str]) -> Path:
 
 def read_dataset(path: str | os.PathLike[str]) -> Dataset:
     """Read and check an fhnn data set; raises :class:`DataFormatError` naming what is wrong."""
-    path = Path(path)
-    if not path.exists():
-        raise DataFormatError(f"{path}: no such file")
-    if path.is_dir():
-        raise DataFormatError(f"{path}: is a folder, not a data file")
+    path = check_input_file(path, "a data file")
     try:
         f = h5py.File(path, "r")
     except OSError:

@@ -35,7 +35,7 @@ import numpy as np
 from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split
 from fhnn.data.derivatives import SMOOTHERS, noise_level, smooth_derivatives
 from fhnn.errors import ConfigError, DataFormatError
-from fhnn.files import atomic_output
+from fhnn.files import atomic_output, check_input_file
 from fhnn.runtime import __version__
 
 REQUIRED = ("traj_id", "t", "x", "y")
@@ -112,11 +112,7 @@ def _pair(values: dict[str, np.ndarray], a: str, b: str, rows: np.ndarray) -> np
 
 def read_table(path: str | os.PathLike[str]) -> Table:
     """Read and check a trajectory table (see the module docstring)."""
-    path = Path(path)
-    if not path.exists():
-        raise DataFormatError(f"{path}: no such file")
-    if path.is_dir():
-        raise DataFormatError(f"{path}: is a folder, not a table")
+    path = check_input_file(path, "a table")
     arrow = _read_arrow(path)
     names = list(arrow.column_names)
     missing = [c for c in REQUIRED if c not in names]
@@ -292,13 +288,12 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     t0 = min(float(tr.t[0]) for tr in trajs)
     series = [(tr.t, tr.pos[:, k]) for tr in trajs for k in range(2)]
     pos_noise = noise_level(series)
-    vel_noise = noise_level([(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]) if has_vel else None
-    # every series at once: (velocity, acceleration) of each position, or the acceleration of
-    # each measured velocity
-    if has_vel:
+    vel_noise = None
+    if has_vel:  # the acceleration of each measured velocity
         velocities = [(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]
+        vel_noise = noise_level(velocities)
         rates = smooth_derivatives(velocities, vel_noise, settings.smoother)
-    else:
+    else:  # (velocity, acceleration) of each position
         rates = smooth_derivatives(series, pos_noise, settings.smoother)
     items = []
     for i, tr in enumerate(trajs):
@@ -328,17 +323,12 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     counts = split_counts(len(items), settings.split)
     perm = np.random.default_rng(settings.seed).permutation(len(items))
     bounds = np.cumsum((0, *counts))
-    splits = {
-        name: _split_of([items[i] for i in np.sort(perm[bounds[k] : bounds[k + 1]])])
-        for k, name in enumerate(SPLITS)
-    }
+    members = {name: np.sort(perm[bounds[k] : bounds[k + 1]]) for k, name in enumerate(SPLITS)}
+    splits = {name: _split_of([items[i] for i in members[name]]) for name in SPLITS}
     steps = np.concatenate([np.diff(tr.t) for tr in trajs])
     measured = ["positions", *(["velocities"] if has_vel else []), *(["forces"] if has_force else [])]
     volume = settings.volume if settings.volume is not None else settings.mass / settings.rho
-    ids = {
-        name: [trajs[i].traj_id for i in np.sort(perm[bounds[k] : bounds[k + 1]])]
-        for k, name in enumerate(SPLITS)
-    }
+    ids = {name: [trajs[i].traj_id for i in members[name]] for name in SPLITS}
     record = {
         "source": source,
         "rows": table.rows,
@@ -439,7 +429,9 @@ __all__ = [
     "ImportSettings",
     "Table",
     "Trajectory",
+    "observe",
     "parse_split",
     "read_table",
     "table_to_dataset",
+    "write_table",
 ]

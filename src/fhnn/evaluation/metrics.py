@@ -56,20 +56,25 @@ def trajectory_metrics(
     n = pred.shape[0]
     err = pred[:, idx] - truth[:, idx]
     err[~finite] = np.inf  # a diverged trajectory's error is infinite at every checkpoint
-    dpos, dvel = err[..., :2], err[..., 2:]
-    dist = np.linalg.norm(dpos, axis=-1)
-    mse_pos = float(np.mean(dpos**2))
-    mse_vel = float(np.mean(dvel**2))
+    return _scores(err, err[:, -1], int(n - finite.sum()), eps)
+
+
+def _scores(err: np.ndarray, final: np.ndarray, diverged: int, eps: float) -> dict[str, float]:
+    """The metrics of the state errors ``err`` ``(..., 4)`` at every checkpoint (pooled) and
+    ``final`` ``(N, 4)`` at each trajectory's last one."""
+    mse_pos = float(np.mean(err[..., :2] ** 2))
+    mse_vel = float(np.mean(err[..., 2:] ** 2))
+    final_dist = np.linalg.norm(final[:, :2], axis=-1)
     return {
         "mse_pos": mse_pos,
         "rmse_pos": float(np.sqrt(mse_pos)),
         "mse_vel": mse_vel,
         "rmse_vel": float(np.sqrt(mse_vel)),
-        "ade": float(np.mean(dist)),
-        "fde": float(np.mean(dist[:, -1])),
-        "within_eps": float(np.mean(dist[:, -1] < eps)),
-        "diverged": int(n - finite.sum()),
-        "n_traj": int(n),
+        "ade": float(np.mean(np.linalg.norm(err[..., :2], axis=-1))),
+        "fde": float(np.mean(final_dist)),
+        "within_eps": float(np.mean(final_dist < eps)),
+        "diverged": diverged,
+        "n_traj": int(final.shape[0]),
     }
 
 
@@ -98,7 +103,7 @@ def irregular_metrics(
         raise ConfigError(
             f"horizon {horizon:g} s exceeds every trajectory's length (longest {end.max():g} s)"
         )
-    sq_pos, sq_vel, dist, final, diverged = [], [], [], [], 0
+    errors, diverged = [], 0
     for i in scored:
         upto = mask[i] & (rel[i] <= horizon + 1e-9)
         keep = upto & (rel[i] > 0)
@@ -106,22 +111,5 @@ def irregular_metrics(
         if not np.all(np.isfinite(pred[i, upto])):
             diverged += 1
             err = np.full_like(err, np.inf)
-        sq_pos.append(err[:, :2] ** 2)
-        sq_vel.append(err[:, 2:] ** 2)
-        d = np.linalg.norm(err[:, :2], axis=-1)
-        dist.append(d)
-        final.append(d[-1])
-    mse_pos = float(np.mean(np.concatenate(sq_pos)))
-    mse_vel = float(np.mean(np.concatenate(sq_vel)))
-    final_arr = np.asarray(final)
-    return {
-        "mse_pos": mse_pos,
-        "rmse_pos": float(np.sqrt(mse_pos)),
-        "mse_vel": mse_vel,
-        "rmse_vel": float(np.sqrt(mse_vel)),
-        "ade": float(np.mean(np.concatenate(dist))),
-        "fde": float(np.mean(final_arr)),
-        "within_eps": float(np.mean(final_arr < eps)),
-        "diverged": int(diverged),
-        "n_traj": int(scored.size),
-    }
+        errors.append(err)
+    return _scores(np.concatenate(errors), np.stack([e[-1] for e in errors]), diverged, eps)

@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import equinox as eqx
@@ -70,30 +71,49 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
             "true_min": float(want[:, i].min()),
             "true_max": float(want[:, i].max()),
         }
-    out["_coverage"] = {
+    out["_coverage"] = _coverage(points)
+    out["_by_sigma"] = _by_sigma(points, want, dataset, lambda inside: rel_all[inside].max(axis=0))
+    return out
+
+
+def _coverage(points: np.ndarray) -> dict[str, float]:
+    """The ranges of the visited ``(r, σ)`` points ``(P, 2)`` [m, m/s]."""
+    return {
         "r_min": float(points[:, 0].min()),
         "r_max": float(points[:, 0].max()),
         "sigma_min": float(points[:, 1].min()),
         "sigma_max": float(points[:, 1].max()),
     }
+
+
+def _by_sigma(
+    points: np.ndarray,
+    coefficients: np.ndarray,
+    dataset: Dataset,
+    per_band: Callable[[np.ndarray], np.ndarray],
+) -> list[dict[str, Any]]:
+    """Per band of σ (quantiles :data:`SIGMA_BANDS` of the visited σ): its bounds [m/s], number of
+    points, the share ``½ρA c_q σ / (½ρA c_q σ + c_l)`` of the quadratic term in the drag of
+    ``coefficients`` ``(P, 4)`` there, and ``per_band(inside)`` (one value per coefficient) for
+    the points ``inside`` it."""
     sigma = points[:, 1]
-    body = dataset.body()
-    quad = 0.5 * body.rho * body.area * want[:, 2] * sigma
-    share = quad / np.maximum(quad + want[:, 3], 1e-300)
+    body = dataset.constants()
+    quad = 0.5 * body["rho"] * body["A"] * coefficients[:, 2] * sigma
+    share = quad / np.maximum(quad + coefficients[:, 3], 1e-300)
     edges = np.quantile(sigma, SIGMA_BANDS)
     band = np.clip(np.searchsorted(edges, sigma, side="right") - 1, 0, len(edges) - 2)
-    out["_by_sigma"] = []
+    out = []
     for b in range(len(edges) - 1):
         inside = band == b
         if not inside.any():
             continue
-        out["_by_sigma"].append(
+        out.append(
             {
                 "sigma_lo": float(edges[b]),
                 "sigma_hi": float(edges[b + 1]),
                 "points": int(inside.sum()),
                 "quadratic_share": float(share[inside].mean()),
-                **dict(zip(COEFFICIENT_NAMES, rel_all[inside].max(axis=0).tolist(), strict=True)),
+                **dict(zip(COEFFICIENT_NAMES, np.asarray(per_band(inside)).tolist(), strict=True)),
             }
         )
     return out
@@ -114,28 +134,8 @@ def learned_coefficients(learned: EquationsOfMotion, dataset: Dataset) -> dict[s
         }
         for i, name in enumerate(COEFFICIENT_NAMES)
     }
-    out["_coverage"] = {
-        "r_min": float(points[:, 0].min()),
-        "r_max": float(points[:, 0].max()),
-        "sigma_min": float(points[:, 1].min()),
-        "sigma_max": float(points[:, 1].max()),
-    }
-    body = dataset.constants()
-    quad = 0.5 * body["rho"] * body["A"] * got[:, 2] * points[:, 1]
-    share = quad / np.maximum(quad + got[:, 3], 1e-300)
-    edges = np.quantile(points[:, 1], SIGMA_BANDS)
-    band = np.clip(np.searchsorted(edges, points[:, 1], side="right") - 1, 0, len(edges) - 2)
-    out["_by_sigma"] = [
-        {
-            "sigma_lo": float(edges[b]),
-            "sigma_hi": float(edges[b + 1]),
-            "points": int((band == b).sum()),
-            "quadratic_share": float(share[band == b].mean()),
-            **dict(zip(COEFFICIENT_NAMES, np.median(got[band == b], axis=0).tolist(), strict=True)),
-        }
-        for b in range(len(edges) - 1)
-        if np.any(band == b)
-    ]
+    out["_coverage"] = _coverage(points)
+    out["_by_sigma"] = _by_sigma(points, got, dataset, lambda inside: np.median(got[inside], axis=0))
     return out
 
 
