@@ -84,6 +84,9 @@ def ws(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "gaps.csv": csv("traj_id,t,x,y", [[r[0], r[1], "", ""] for r in rows]),
         "table.txt": csv("traj_id,t,x,y", rows),
         "binary.parquet": "not parquet",
+        "force.csv": "t,Fx,Fy\n0,0,0\n1,0.5,0\n",
+        "force_nofy.csv": "t,Fx\n0,0\n1,0.5\n",
+        "force_dup.csv": "t,Fx,Fy\n0,0,0\n1,0.5,0\n1,0,0\n",
     }
     for name, text in tables.items():
         (ws / name).write_text(text)
@@ -106,6 +109,7 @@ def _snapshot(folder: Path) -> dict[str, tuple[str, int]]:
 S = ["simulate", "steady_vortex"]
 B = ["--mass", "10", "--area", "0.1"]
 T = ["train", "{ws}/d.h5"]
+P = ["predict", "{ws}/run", "--duration", "1", "--initial", "0,1,0,0"]
 #: (arguments — ``{ws}`` is the workspace —, text the one-line message must contain)
 CASES = [
     # simulate: parameters, options, output paths
@@ -223,6 +227,24 @@ CASES = [
         ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--smoother", "x"],
         "--smoother must be one of spline, kalman",
     ),
+    (["predict", "{ws}/run", "--duration", "1"], "give --initial x,y,vx,vy or --history TABLE"),
+    ([*P, "--history", "{ws}/good.csv"], "give --initial x,y,vx,vy or --history TABLE"),
+    (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,3"], "--initial expects x,y,vx,vy"),
+    (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,a,b"], "--initial expects x,y,vx,vy"),
+    (["predict", "{ws}/run", "--duration", "0", "--initial", "0,1,0,0"], "--duration must be > 0 s"),
+    ([*P, "--dt", "-1"], "--dt must be > 0 s"),
+    ([*P, "--fit-window", "0"], "--fit-window must be > 0 s"),
+    (
+        ["predict", "{ws}/run", "--duration", "5", "--initial", "0,1,0,0", "--forcing", "{ws}/force.csv"],
+        "the forcing table covers t = 0–1 s; the forecast of trajectory 'initial' needs 0–5 s",
+    ),
+    ([*P, "--forcing", "{ws}/force_nofy.csv"], "missing column(s) Fy (have t, Fx)"),
+    ([*P, "--forcing", "{ws}/force_dup.csv"], "rows 2 and 3 have the same time t = 1 s"),
+    (["predict", "{ws}/run", "--duration", "1", "--history", "{ws}/nocol.csv"], "missing column(s) t"),
+    (["predict", "{ws}/run", "--duration", "1", "--history", "{ws}/short.csv"], "trajectory '9' has 2"),
+    ([*P, "-o", "{ws}/missing/p.csv"], "output folder '{ws}/missing' does not exist"),
+    ([*P, "-o", "{ws}/p.txt"], "{ws}/p.txt: give a .csv or .parquet file name"),
+    ([*P, "--t0", "nan"], "--t0 must be finite"),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--workers", "0"], "workers"),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "models=fhnn,gru"], "unknown name 'gru' in models"),
     (["reproduce", "--quick", "-o", "{ws}/rep", "--set", "data.n_traj=2"], "n_traj must be >= 3"),
@@ -253,5 +275,14 @@ def test_bad_input_is_one_line_exit_2_and_changes_nothing(
 
 def test_the_matrix_covers_every_command_with_forty_cases() -> None:
     commands = {args[0] for args, _ in CASES}
-    assert commands == {"simulate", "import", "info", "train", "evaluate", "inspect", "reproduce"}
+    assert commands == {
+        "simulate",
+        "import",
+        "info",
+        "train",
+        "evaluate",
+        "inspect",
+        "predict",
+        "reproduce",
+    }
     assert len(CASES) >= 40

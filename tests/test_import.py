@@ -17,9 +17,10 @@ from fhnn.data.dataset import Split, read_dataset, write_dataset
 from fhnn.data.derivatives import lagrange_residuals, noise_level, rts_smooth, smooth_derivatives
 from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_table
 from fhnn.data.windows import Windows
-from fhnn.evaluation.metrics import irregular_metrics
+from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_metrics
+from fhnn.evaluation.predict import estimate_states, forecast
 from fhnn.models.base import AbstractVectorField
-from fhnn.physics.actuation import forcing
+from fhnn.physics.actuation import actuation_force, forcing
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import rk4_step
 from fhnn.training.run import Run
@@ -250,6 +251,38 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert "coverage of the observed states" in said and "position noise seen" in said
     assert (run / "flow.png").exists() and (run / "coefficients.png").exists()
     assert read_dataset(data).extra["import"]["traj_ids"]  # unchanged by training
+    # predict: from the end of observed tracks (first 2 s of each), and from a given state
+    _, table = imported
+    early = table["t"] <= 2.0
+    write_table({c: v[early] for c, v in table.items()}, folder / "history.csv")
+    history = read_table(folder / "history.csv")
+    with pytest.raises(SystemExit) as info:
+        main(
+            [
+                "predict",
+                str(run),
+                "--history",
+                str(folder / "history.csv"),
+                "--duration",
+                "1",
+                "--dt",
+                "0.1",
+                "-o",
+                str(folder / "pred.parquet"),
+            ]
+        )
+    assert info.value.code == 0
+    assert "fitted 12 track(s): RMS position residual median" in capsys.readouterr().err
+    pred = read_table(folder / "pred.parquet")
+    assert [p.traj_id for p in pred.trajectories] == [h.traj_id for h in history.trajectories]
+    for p, h in zip(pred.trajectories, history.trajectories, strict=True):
+        np.testing.assert_allclose(p.t, h.t[-1] + np.linspace(0.0, 1.0, 11), atol=1e-12)
+        assert np.all(np.isfinite(p.pos)) and np.abs(p.pos[0] - h.pos[-1]).max() < 0.02
+    with pytest.raises(SystemExit) as info:
+        main(["predict", str(run), "--initial", "1,2,0.1,0", "--duration", "0.5", "--dt", "0.1"])
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0] == "traj_id,t,x,y,vx,vy" and len(lines) == 7
+    assert lines[1] == "initial,0.0,1.0,2.0,0.1,0.0"
 
 
 def test_read_table_groups_shuffled_rows_by_trajectory_in_time_order(imported) -> None:
@@ -302,3 +335,83 @@ def test_kalman_smoother_ignores_padding_and_recovers_a_quadratic(rng) -> None:
     np.testing.assert_allclose(outs[2], outs[0], rtol=0, atol=1e-12)
     np.testing.assert_allclose(outs[0][:, 1], 0.5 - 0.6 * t, atol=1e-6)
     np.testing.assert_allclose(outs[0][:, 2], -0.6, atol=1e-5)
+
+
+def _first_seconds(split: Split, seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Times, clean states, forces and mask of each (ragged) trajectory's first ``seconds``."""
+    mask = split.mask & (split.t - split.t[:, :1] <= seconds + 1e-9)
+    size = int(mask.sum(axis=1).max())
+    t = split.t[:, :size].copy()
+    for i, k in enumerate(mask.sum(axis=1)):
+        t[i, k:] = t[i, k - 1] + PAD_STEP * np.arange(1, size - k + 1)
+    return t, split.states_clean[:, :size], split.forces[:, :size], mask[:, :size]
+
+
+class _Forced(AbstractVectorField):
+    """The true equations under one trajectory's exact sinusoidal forcing (the force passed in,
+    interpolated between samples, is ignored)."""
+
+    eom: EquationsOfMotion
+    act: jnp.ndarray
+
+    def __call__(self, state, t, force):
+        return self.eom(state, t, actuation_force(self.act, t))
+
+
+def test_estimated_state_is_the_one_the_positions_came_from(fine, rng) -> None:
+    split = _ragged(fine.test, rng)
+    assert split.n_traj == 1
+    t, clean, force, mask = _first_seconds(split, 1.0)
+    truth = _Forced(fine.equations(), jnp.asarray(split.actuation[0]))
+    last = mask.sum(axis=1) - 1
+    rows = np.arange(t.shape[0])
+    # exact positions, a poor first guess (at rest): the fit lands on the true state
+    states, rms = estimate_states(
+        truth, t, clean[..., :2], mask=mask, force=force, guess_velocity=np.zeros((t.shape[0], 2))
+    )
+    assert np.abs(states - clean[rows, last]).max() < 1e-7
+    assert rms.max() < 1e-7
+    # 1 mm noise: the residual shows the noise, the state is found far better than one sample gives
+    noisy = clean[..., :2] + rng.normal(0.0, NOISE, clean[..., :2].shape)
+    states, rms = estimate_states(truth, t, noisy, mask=mask, force=force)
+    assert 0.6 * NOISE < np.median(rms) < 1.2 * NOISE
+    assert np.sqrt(np.mean((states[:, :2] - clean[rows, last, :2]) ** 2)) < 0.6 * NOISE
+    assert np.sqrt(np.mean((states[:, 2:] - clean[rows, last, 2:]) ** 2)) < 5 * NOISE  # [m/s]
+    with pytest.raises(ValueError, match="at least 3 observed positions"):
+        estimate_states(truth, t[:, :2], clean[:, :2, :2])
+
+
+def test_forecast_from_a_state_follows_the_truth_with_interpolated_forces(fine) -> None:
+    split = fine.test
+    start = 40  # forecast from t = 0.4 s to 4 s, forces given only every 0.05 s
+    times = split.t[start::5][None].repeat(split.n_traj, axis=0)
+    forces = split.forces[:, start::5]
+    states, ok = forecast(_Truth(fine.equations()), split.states_clean[:, start], times, forces)
+    assert ok.all()
+    err = np.abs(states - split.states_clean[:, start::5])
+    # the forcing is smooth (sinusoids ≤ 0.5 Hz): linear interpolation at 0.05 s costs little
+    assert err[:, -1, :2].max() < 1e-4
+    exact, _ = forecast(
+        _Truth(fine.equations()),
+        split.states_clean[:, start],
+        split.t[None, start:].repeat(split.n_traj, 0),
+        split.forces[:, start:],
+    )
+    assert np.abs(exact - split.states_clean[:, start:]).max() < np.abs(err).max()
+
+
+def test_liu_weisberg_skill_by_hand() -> None:
+    assert liu_weisberg(np.array([0.1, 0.2]), np.array([1.0, 2.0])) == pytest.approx(0.9)
+    assert liu_weisberg(np.array([2.0, 3.0]), np.array([1.0, 2.0])) == 0.0  # clipped
+    assert liu_weisberg(np.array([0.1, np.inf]), np.array([1.0, 2.0])) == 0.0  # diverged
+    assert liu_weisberg(np.zeros(2), np.zeros(2)) == 1.0
+    # a straight truth at 1 m/s sampled every 0.5 s, a forecast 0.1 m off at every sample
+    t = np.arange(0.0, 2.01, 0.5)
+    truth = np.zeros((1, t.size, 4))
+    truth[0, :, 0] = t
+    pred = truth.copy()
+    pred[0, :, 1] = 0.1
+    m = irregular_metrics(pred, truth, t[None], np.ones((1, t.size), bool), 2.0)
+    assert m["skill"] == pytest.approx(1 - 0.4 / (0.5 + 1.0 + 1.5 + 2.0))
+    m = trajectory_metrics(pred, truth, t, 2.0)  # checkpoints at 1 and 2 s
+    assert m["skill"] == pytest.approx(1 - 0.2 / 3.0)

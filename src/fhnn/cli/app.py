@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Annotated, Any
 
+import numpy as np
 import typer
 from rich import box
 from rich.console import Console
@@ -545,7 +546,7 @@ def evaluate(
         title=f"{run_dir} on {split} ({len(result['diverged'])} trajectories)",
         title_justify="left",
         box=box.SIMPLE_HEAD,
-        padding=(0, 1),
+        padding=(0, 0, 0, 1),
     )
     columns = {  # header (two lines, so that the table fits 80 columns), format
         "rmse_pos": ("RMSE\npos [m]", "{:.3g}"),
@@ -553,6 +554,7 @@ def evaluate(
         "ade": ("ADE\n[m]", "{:.3g}"),
         "fde": ("FDE\n[m]", "{:.3g}"),
         "within_eps": ("within\n1 cm", "{:.0%}"),
+        "skill": ("LW\nskill", "{:.2f}"),
         "diverged": ("diverged", "{:d}"),
         "outside_training": ("left\ntraining", "{:.0%}"),
     }
@@ -562,6 +564,113 @@ def evaluate(
     for h, m in result["horizons"].items():
         table.add_row(h, *(fmt.format(m[c]) for c, (_, fmt) in columns.items()))
     stdout.print(table)
+
+
+@app.command()
+def predict(
+    run_dir: Annotated[
+        Path, typer.Argument(help="Run folder written by `fhnn train` (a vector-field model).")
+    ],
+    duration: Annotated[float, typer.Option("--duration", help="Forecast length in seconds.")],
+    initial: Annotated[
+        str | None,
+        typer.Option("--initial", help="Start state x,y,vx,vy [m, m, m/s, m/s] at --t0."),
+    ] = None,
+    t0: Annotated[float, typer.Option("--t0", help="Time of --initial in seconds.")] = 0.0,
+    history: Annotated[
+        Path | None,
+        typer.Option(
+            "--history",
+            help="Observed tracks (.csv/.parquet as for fhnn import: traj_id, t, x, y[, vx, vy][, Fx, "
+            "Fy]): each is forecast from its last sample, its state there fitted to its last "
+            "--fit-window seconds.",
+        ),
+    ] = None,
+    forcing: Annotated[
+        Path | None,
+        typer.Option(
+            "--forcing",
+            help="Known forces over the forecast (.csv/.parquet: t, Fx, Fy[, traj_id]) [default: none].",
+        ),
+    ] = None,
+    dt: Annotated[
+        float | None,
+        typer.Option("--dt", help="Output step in seconds [default: the history's median step, or 0.05]."),
+    ] = None,
+    fit_window: Annotated[
+        float, typer.Option("--fit-window", help="Seconds of each history the start state is fitted to.")
+    ] = 1.0,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "--output", "-o", help="Write the forecast here (.csv or .parquet) [default: CSV on stdout]."
+        ),
+    ] = None,
+) -> None:
+    """Forecast with a trained model from a given state or from the end of observed tracks: columns
+    traj_id, t, x, y, vx, vy. A history's start state is the one the model explains best (a least
+    squares fit of its trajectory to the last observed positions), not a smoother's end point."""
+    from fhnn.data.table import read_forcing, read_table, write_table
+    from fhnn.evaluation.predict import predict_tracks
+    from fhnn.models.base import AbstractVectorField
+    from fhnn.training.run import Run
+
+    if (initial is None) == (history is None):
+        raise ConfigError("give --initial x,y,vx,vy or --history TABLE (one of them)")
+    state = None
+    if initial is not None:
+        try:
+            state = [float(v) for v in initial.split(",")]
+        except ValueError:
+            raise ConfigError(f"--initial expects x,y,vx,vy as four numbers, got {initial!r}") from None
+        if len(state) != 4:
+            raise ConfigError(f"--initial expects x,y,vx,vy as four numbers, got {initial!r}")
+    if output is not None:
+        check_output_path(output)
+        if output.suffix.lower() not in (".csv", ".parquet"):
+            raise ConfigError(f"{output}: give a .csv or .parquet file name")
+    tracks = read_table(history) if history is not None else None
+    forces = read_forcing(forcing) if forcing is not None else None
+    run = Run.load(run_dir)
+    model = run.state.best_model
+    if not isinstance(model, AbstractVectorField):
+        raise ConfigError(f"predict needs a vector-field model; a {run.kind!r} model steps on its own grid")
+    if dt is None:
+        dt = (
+            float(np.median(np.concatenate([np.diff(tr.t) for tr in tracks.trajectories])))
+            if tracks
+            else 0.05
+        )
+    result = predict_tracks(
+        model,
+        duration=duration,
+        dt=dt,
+        initial=None if state is None else np.asarray(state),
+        t0=t0,
+        history=tracks,
+        forcing_table=forces,
+        fit_window=fit_window,
+    )
+    if forces is None:
+        err.print("note: no --forcing: the forecast assumes no external force", highlight=False)
+    if tracks is not None:
+        err.print(
+            f"fitted {len(result.ids)} track(s): RMS position residual median "
+            f"{float(np.median(result.fit_rms)):.3g} m (about the noise when the model explains them)",
+            highlight=False,
+        )
+    failed = [i for i, ok in zip(result.ids, result.ok, strict=True) if not ok]
+    if failed:
+        err.print(f"warning: the forecast of {', '.join(failed)} diverged", highlight=False)
+    columns = result.columns()
+    if output is not None:
+        write_table(columns, output)
+        err.print(f"wrote {output}", highlight=False)
+        return
+    names = list(columns)
+    typer.echo(",".join(names))
+    for row in zip(*(columns[c] for c in names), strict=True):
+        typer.echo(",".join(str(v) if isinstance(v, str) else repr(float(v)) for v in row))
 
 
 def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> None:

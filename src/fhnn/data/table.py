@@ -110,19 +110,28 @@ def _pair(values: dict[str, np.ndarray], a: str, b: str, rows: np.ndarray) -> np
     return np.stack([values[a][rows], values[b][rows]], axis=1) if a in values else None
 
 
-def read_table(path: str | os.PathLike[str]) -> Table:
-    """Read and check a trajectory table (see the module docstring)."""
-    path = check_input_file(path, "a table")
+def _open(
+    path: str | os.PathLike[str], kind: str, required: tuple[str, ...], allowed: tuple[str, ...]
+) -> tuple[Path, Any, list[str]]:
+    """The checked path, its Arrow table and column names; missing ``required`` or columns not
+    ``allowed`` are errors."""
+    path = check_input_file(path, kind)
     arrow = _read_arrow(path)
     names = list(arrow.column_names)
-    missing = [c for c in REQUIRED if c not in names]
+    missing = [c for c in required if c not in names]
     if missing:
         raise DataFormatError(f"{path}: missing column(s) {', '.join(missing)} (have {', '.join(names)})")
-    unknown = [c for c in names if c not in COLUMNS]
+    unknown = [c for c in names if c not in allowed]
     if unknown:
         raise DataFormatError(
-            f"{path}: unknown column(s) {', '.join(unknown)}; the columns are {', '.join(COLUMNS)}"
+            f"{path}: unknown column(s) {', '.join(unknown)}; the columns are {', '.join(allowed)}"
         )
+    return path, arrow, names
+
+
+def read_table(path: str | os.PathLike[str]) -> Table:
+    """Read and check a trajectory table (see the module docstring)."""
+    path, arrow, names = _open(path, "a table", REQUIRED, COLUMNS)
     for a, b in OPTIONAL_PAIRS:
         if (a in names) != (b in names):
             raise DataFormatError(
@@ -172,6 +181,46 @@ def read_table(path: str | os.PathLike[str]) -> Table:
         pos, vel, force = (_pair(values, a_, b_, rows_of) for a_, b_ in (("x", "y"), *OPTIONAL_PAIRS))
         trajectories.append(Trajectory(traj_id, t, pos, vel, force))
     return Table(trajectories=trajectories, rows=rows, dropped=int(gap.sum()))
+
+
+FORCING_COLUMNS = ("t", "Fx", "Fy")
+
+
+def read_forcing(path: str | os.PathLike[str]) -> dict[str | None, tuple[np.ndarray, np.ndarray]]:
+    """A table of known forces: columns ``t, Fx, Fy`` [s, N, N] and optionally ``traj_id``.
+    Returns ``{traj_id: (t (n,), force (n, 2))}`` sorted by time, with the key ``None`` for a
+    table without ``traj_id`` (one forcing for every trajectory). Rows with a missing value are
+    dropped; a trajectory needs two rows and distinct times."""
+    path, arrow, names = _open(path, "a forcing table", FORCING_COLUMNS, (*FORCING_COLUMNS, "traj_id"))
+    if arrow.num_rows == 0:
+        raise DataFormatError(f"{path}: the table has no rows")
+    values = {c: _numeric(path, c, arrow.column(c)) for c in FORCING_COLUMNS}
+    for name, column in values.items():
+        bad = np.flatnonzero(np.isinf(column))
+        if bad.size:
+            raise DataFormatError(f"{path}: column {name!r}, row {int(bad[0]) + 1}: infinite value")
+    if "traj_id" in names:
+        ids = np.asarray([("" if v is None else str(v)) for v in arrow.column("traj_id").to_pylist()])
+    else:
+        ids = np.full(arrow.num_rows, "all")
+    keep = ~np.isnan(values["t"]) & ~np.isnan(values["Fx"]) & ~np.isnan(values["Fy"]) & (ids != "")
+    out: dict[str | None, tuple[np.ndarray, np.ndarray]] = {}
+    for traj in sorted(set(ids[keep].tolist())):
+        rows = np.flatnonzero(keep & (ids == traj))
+        rows = rows[np.argsort(values["t"][rows], kind="stable")]
+        key = traj if "traj_id" in names else None
+        t = values["t"][rows]
+        name = "the table" if key is None else f"trajectory {key!r}"
+        if t.size < 2:
+            raise DataFormatError(f"{path}: {name} has {t.size} row(s) with values; at least 2 are needed")
+        same = np.flatnonzero(np.diff(t) == 0)
+        if same.size:
+            r1, r2 = sorted(int(r) + 1 for r in rows[same[0] : same[0] + 2])
+            raise DataFormatError(f"{path}: rows {r1} and {r2} have the same time t = {t[same[0]]:g} s")
+        out[key] = (t, np.stack([values["Fx"][rows], values["Fy"][rows]], axis=1))
+    if not out:
+        raise DataFormatError(f"{path}: every row has a missing value")
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -431,6 +480,7 @@ __all__ = [
     "Trajectory",
     "observe",
     "parse_split",
+    "read_forcing",
     "read_table",
     "table_to_dataset",
     "write_table",

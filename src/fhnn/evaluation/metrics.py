@@ -8,7 +8,11 @@ For a horizon ``H`` [s] the checkpoints are ``t = 1, 2, …, H`` (or ``0, 1, …
   likewise); ``mse_pos``, ``mse_vel`` are the squares;
 - ``ade = mean ‖Δx‖`` over trajectories and checkpoints;
 - ``fde = mean ‖Δx(H)‖`` over trajectories;
-- ``within_eps`` = fraction of trajectories with ``‖Δx(H)‖ < eps`` (``eps = 0.01 m``).
+- ``within_eps`` = fraction of trajectories with ``‖Δx(H)‖ < eps`` (``eps = 0.01 m``);
+- ``skill``: the Liu–Weisberg skill score drifter forecasters use (Liu & Weisberg 2011, J.
+  Geophys. Res. 116, C09013), per trajectory ``1 − Σᵢ ‖Δxᵢ‖ / Σᵢ ℓᵢ`` clipped at 0, with ``ℓᵢ`` the
+  length of the true path from the start to checkpoint ``i`` (over every sample), averaged over
+  trajectories: 1 is a perfect forecast, 0 one whose separations add up to the distance travelled.
 
 A diverged trajectory (non-finite prediction anywhere up to ``H``) is counted in ``diverged`` and
 has an infinite error: no trajectory is left out, so ``mse_*``, ``rmse_*``, ``ade`` and ``fde`` are
@@ -56,12 +60,33 @@ def trajectory_metrics(
     n = pred.shape[0]
     err = pred[:, idx] - truth[:, idx]
     err[~finite] = np.inf  # a diverged trajectory's error is infinite at every checkpoint
-    return _scores(err, err[:, -1], int(n - finite.sum()), eps)
+    path = path_length(truth[..., :2])[:, idx]
+    skill = [liu_weisberg(np.linalg.norm(e[:, :2], axis=-1), p) for e, p in zip(err, path, strict=True)]
+    return _scores(err, err[:, -1], int(n - finite.sum()), eps, skill)
 
 
-def _scores(err: np.ndarray, final: np.ndarray, diverged: int, eps: float) -> dict[str, float]:
-    """The metrics of the state errors ``err`` ``(..., 4)`` at every checkpoint (pooled) and
-    ``final`` ``(N, 4)`` at each trajectory's last one."""
+def path_length(pos: np.ndarray) -> np.ndarray:
+    """Length of the path through the positions ``pos`` ``(..., T, 2)`` from its first sample to
+    each sample, shape ``(..., T)`` [m]."""
+    steps = np.linalg.norm(np.diff(pos, axis=-2), axis=-1)
+    return np.concatenate([np.zeros((*steps.shape[:-1], 1)), np.cumsum(steps, axis=-1)], axis=-1)
+
+
+def liu_weisberg(separation: np.ndarray, path: np.ndarray) -> float:
+    """The Liu–Weisberg skill ``max(0, 1 − Σ separation / Σ path)`` of one forecast, from its
+    separations from the truth ``(K,)`` [m] and the true path's lengths ``(K,)`` [m] at the same
+    checkpoints (tolerance n = 1). A body that has not moved scores 1 if the forecast stays on it."""
+    total, travelled = float(np.sum(separation)), float(np.sum(path))
+    if travelled == 0.0:
+        return 1.0 if total == 0.0 else 0.0
+    return max(0.0, 1.0 - total / travelled) if np.isfinite(total) else 0.0
+
+
+def _scores(
+    err: np.ndarray, final: np.ndarray, diverged: int, eps: float, skill: list[float]
+) -> dict[str, float]:
+    """The metrics of the state errors ``err`` ``(..., 4)`` at every checkpoint (pooled),
+    ``final`` ``(N, 4)`` at each trajectory's last one, and each trajectory's ``skill``."""
     mse_pos = float(np.mean(err[..., :2] ** 2))
     mse_vel = float(np.mean(err[..., 2:] ** 2))
     final_dist = np.linalg.norm(final[:, :2], axis=-1)
@@ -73,6 +98,7 @@ def _scores(err: np.ndarray, final: np.ndarray, diverged: int, eps: float) -> di
         "ade": float(np.mean(np.linalg.norm(err[..., :2], axis=-1))),
         "fde": float(np.mean(final_dist)),
         "within_eps": float(np.mean(final_dist < eps)),
+        "skill": float(np.mean(skill)),
         "diverged": diverged,
         "n_traj": int(final.shape[0]),
     }
@@ -103,7 +129,7 @@ def irregular_metrics(
         raise ConfigError(
             f"horizon {horizon:g} s exceeds every trajectory's length (longest {end.max():g} s)"
         )
-    errors, diverged = [], 0
+    errors, skill, diverged = [], [], 0
     for i in scored:
         upto = mask[i] & (rel[i] <= horizon + 1e-9)
         keep = upto & (rel[i] > 0)
@@ -112,4 +138,6 @@ def irregular_metrics(
             diverged += 1
             err = np.full_like(err, np.inf)
         errors.append(err)
-    return _scores(np.concatenate(errors), np.stack([e[-1] for e in errors]), diverged, eps)
+        path = path_length(truth[i, upto, :2])[keep[upto]]
+        skill.append(liu_weisberg(np.linalg.norm(err[:, :2], axis=-1), path))
+    return _scores(np.concatenate(errors), np.stack([e[-1] for e in errors]), diverged, eps, skill)

@@ -1,0 +1,310 @@
+"""Forecasts from a given state, and the state a model sees in a track of observed positions.
+
+- :func:`estimate_states`: the state ``(x, y, vx, vy)`` at the last sample of each observed track
+  (noisy positions at irregular times, known forces) that the model explains best — the least
+  squares fit of the model's own trajectory (RK4 with :data:`SUBSTEPS` steps per sample interval)
+  to the positions, over the start state, by Gauss–Newton with Levenberg–Marquardt damping. A
+  smoother's estimate at a track's end sees one side only; the fit uses every sample and the
+  dynamics, so a forecast starts from a state the model can continue.
+- :func:`forecast`: the model's rollout (adaptive Dopri8 landing on each output time, as
+  evaluation rollouts) from start states at their own start times, with forces given at the
+  output times (linearly interpolated between them), on a regular output grid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from fhnn.data.table import PAD_STEP, Table
+from fhnn.errors import ConfigError
+from fhnn.models.base import BLOW_UP, ROLLOUT_TOL, STEPS_PER_SAMPLE, AbstractVectorField
+from fhnn.physics.actuation import forcing, no_actuation
+from fhnn.physics.integrators import rk4_solve, solve_forced_batch
+
+Array = jax.Array
+
+#: RK4 steps per sample interval when fitting a track (its error is then far below the noise).
+SUBSTEPS = 4
+#: Gauss–Newton iterations of the fit (it converges in a few on smooth tracks).
+ITERATIONS = 12
+
+
+def _refine(t: np.ndarray) -> np.ndarray:
+    """The times ``t`` ``(N, K)`` with :data:`SUBSTEPS` − 1 equally spaced times inserted in each
+    interval, shape ``(N, (K − 1)·SUBSTEPS + 1)``."""
+    frac = np.arange(SUBSTEPS) / SUBSTEPS
+    inner = t[:, :-1, None] + np.diff(t, axis=1)[..., None] * frac
+    return np.concatenate([inner.reshape(t.shape[0], -1), t[:, -1:]], axis=1)
+
+
+@eqx.filter_jit
+def _fit(
+    model: AbstractVectorField,
+    guess: Array,
+    t: Array,
+    fine: Array,
+    pos: Array,
+    mask: Array,
+    force: Array,
+    last: Array,
+) -> tuple[Array, Array]:
+    """Per track: the start state minimising the masked squared position residuals, and the
+    model's state at the track's last real sample ``last``; also the RMS residual [m]."""
+
+    def one(s0: Array, tt: Array, ff: Array, p: Array, m: Array, fk: Array, k: Array) -> tuple[Array, Array]:
+        f = lambda s, time: model(s, time, forcing(jnp.zeros((2, 3, 3)), time, tt, fk))  # noqa: E731
+        scale = jnp.maximum(jnp.std(p, axis=0), 1e-3)
+
+        def path(s: Array) -> Array:
+            return rk4_solve(f, s, ff)[::SUBSTEPS]
+
+        def residual(s: Array) -> Array:
+            return (((path(s)[:, :2] - p) / scale) * m[:, None]).ravel()
+
+        def step(carry: tuple[Array, Array], _: None) -> tuple[tuple[Array, Array], None]:
+            s, damp = carry
+            r = residual(s)
+            jac = jax.jacfwd(residual)(s)
+            jtj, jtr = jac.T @ jac, jac.T @ r
+            delta = jnp.linalg.solve(jtj + damp * jnp.diag(jnp.diag(jtj) + 1e-12), -jtr)
+            better = jnp.sum(residual(s + delta) ** 2) < jnp.sum(r**2)
+            return (jnp.where(better, s + delta, s), jnp.where(better, damp * 0.3, damp * 10.0)), None
+
+        (s_fit, _), _ = jax.lax.scan(step, (s0, jnp.asarray(1e-3)), None, length=ITERATIONS)
+        states = path(s_fit)
+        res = (states[:, :2] - p) * m[:, None]
+        rms = jnp.sqrt(jnp.sum(res**2) / (2 * jnp.sum(m)))
+        return states[k], rms
+
+    return jax.vmap(one)(guess, t, fine, pos, mask, force, last)
+
+
+def estimate_states(
+    model: AbstractVectorField,
+    t: np.ndarray,
+    pos: np.ndarray,
+    *,
+    mask: np.ndarray | None = None,
+    force: np.ndarray | None = None,
+    guess_velocity: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The model's state at the last real sample of each observed track.
+
+    Args:
+        model: a trained vector field.
+        t: sample times [s], shape ``(N, K)``, increasing along each row (padding after a shorter
+            track's last sample must keep increasing; ``mask`` marks it).
+        pos: observed positions [m], shape ``(N, K, 2)``.
+        mask: ``(N, K)``, true at real samples (default: all); each track needs at least 3.
+        force: known external forces [N] at the samples, ``(N, K, 2)`` (default: none).
+        guess_velocity: a first guess of each track's velocity at its first sample [m/s],
+            ``(N, 2)`` (default: the finite difference of its first two samples).
+
+    Returns:
+        ``(states, rms)``: states ``(N, 4)`` [m, m, m/s, m/s] at each track's last real sample and
+        the RMS position residual [m] of each fit (about the noise when the model explains the
+        track).
+    """
+    t = np.asarray(t, dtype=float)
+    pos = np.asarray(pos, dtype=float)
+    if t.ndim != 2 or pos.shape != (*t.shape, 2):
+        raise ConfigError(f"t must be (N, K) and pos (N, K, 2), got {t.shape} and {pos.shape}")
+    mask = np.ones(t.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    counts = mask.sum(axis=1)
+    if np.any(counts < 3):
+        raise ConfigError(
+            f"a track needs at least 3 observed positions, track {int(np.argmin(counts))} has "
+            f"{int(counts.min())}"
+        )
+    if np.any(np.diff(t, axis=1) <= 0):
+        raise ConfigError("the sample times of each track must increase")
+    force = np.zeros((*t.shape, 2)) if force is None else np.asarray(force, dtype=float)
+    if guess_velocity is None:
+        guess_velocity = (pos[:, 1] - pos[:, 0]) / (t[:, 1:2] - t[:, :1])
+    guess = np.concatenate([pos[:, 0], guess_velocity], axis=1)
+    pos = np.where(mask[..., None], pos, 0.0)
+    states, rms = _fit(
+        model,
+        jnp.asarray(guess),
+        jnp.asarray(t),
+        jnp.asarray(_refine(t)),
+        jnp.asarray(pos),
+        jnp.asarray(mask, dtype=float),
+        jnp.asarray(force),
+        jnp.asarray(counts - 1),
+    )
+    return np.asarray(states), np.asarray(rms)
+
+
+def forecast(
+    model: AbstractVectorField,
+    start: np.ndarray,
+    t: np.ndarray,
+    force: np.ndarray | None = None,
+    *,
+    rtol: float = ROLLOUT_TOL,
+    atol: float = ROLLOUT_TOL,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Roll ``model`` out from ``start`` ``(N, 4)`` at ``t[:, 0]`` through the output times ``t``
+    ``(N, T)`` [s], with known forces ``force`` ``(N, T, 2)`` [N] at those times (linear between
+    them; default none). Returns ``(states (N, T, 4), ok (N,))``; a rollout that blows up
+    (beyond :data:`~fhnn.models.base.BLOW_UP` times its start's scale) or runs out of steps is
+    not ok."""
+    start = np.asarray(start, dtype=float)
+    t = np.asarray(t, dtype=float)
+    n = start.shape[0]
+    force = np.zeros((*t.shape, 2)) if force is None else np.asarray(force, dtype=float)
+    bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(start)))))
+    states, ok = solve_forced_batch(
+        model,
+        jnp.asarray(start),
+        jnp.asarray(no_actuation(n)),
+        jnp.asarray(t),
+        rtol,
+        atol,
+        STEPS_PER_SAMPLE * (t.shape[-1] - 1) + 1000,
+        bound,
+        jnp.asarray(force),
+    )
+    states = np.asarray(states)
+    return states, np.asarray(ok) & np.all(np.isfinite(states), axis=(1, 2))
+
+
+#: Default span of a history fitted by :func:`predict_tracks` [s]: chosen on the validation
+#: split of ``benchmarks/own_data.py`` (0.5, 1, 2, 3 s and the whole track tried; 1 s gave the
+#: smallest 1 s and 5 s forecast errors).
+FIT_WINDOW = 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Forecast:
+    """Forecasts of named tracks: ``t`` ``(N, T)`` [s], ``states`` ``(N, T, 4)``, ``ok`` ``(N,)``,
+    the fitted history's RMS position residual ``fit_rms`` ``(N,)`` [m] (NaN without a history)."""
+
+    ids: list[str]
+    t: np.ndarray
+    states: np.ndarray
+    ok: np.ndarray
+    fit_rms: np.ndarray
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The forecasts as table columns ``traj_id, t, x, y, vx, vy`` (one row per output time)."""
+        size = self.t.shape[1]
+        out = {
+            "traj_id": np.repeat(np.asarray(self.ids, dtype=object), size).astype(str),
+            "t": self.t.ravel(),
+        }
+        for j, name in enumerate(("x", "y", "vx", "vy")):
+            out[name] = self.states[..., j].ravel()
+        return out
+
+
+def _forces_at(
+    forcing_table: dict[str | None, tuple[np.ndarray, np.ndarray]] | None,
+    traj: str,
+    t: np.ndarray,
+    *,
+    required: bool,
+) -> np.ndarray | None:
+    """Forces ``(len(t), 2)`` of track ``traj`` at times ``t`` from a forcing table (its own rows,
+    or the table's common rows), linear between rows; ``None`` if the table has none for it or
+    does not cover ``t`` and ``required`` is false."""
+    if forcing_table is None:
+        return None
+    rows = forcing_table.get(traj, forcing_table.get(None))
+    if rows is None:
+        if required:
+            raise ConfigError(f"the forcing table has no rows for trajectory {traj!r}")
+        return None
+    tf, force = rows
+    if t[0] < tf[0] - 1e-9 or t[-1] > tf[-1] + 1e-9:
+        if required:
+            raise ConfigError(
+                f"the forcing table covers t = {tf[0]:g}–{tf[-1]:g} s; the forecast of trajectory {traj!r} "
+                f"needs {t[0]:g}–{t[-1]:g} s"
+            )
+        return None
+    return np.stack([np.interp(t, tf, force[:, 0]), np.interp(t, tf, force[:, 1])], axis=1)
+
+
+def predict_tracks(
+    model: AbstractVectorField,
+    *,
+    duration: float,
+    dt: float,
+    initial: np.ndarray | None = None,
+    t0: float = 0.0,
+    history: Table | None = None,
+    forcing_table: dict[str | None, tuple[np.ndarray, np.ndarray]] | None = None,
+    fit_window: float = FIT_WINDOW,
+) -> Forecast:
+    """Forecast ``duration`` [s] on a grid of about ``dt`` [s], either from one given ``initial``
+    state ``(4,)`` at ``t0`` [s] (track id ``"initial"``), or from the end of each track of an
+    observed ``history`` (a :class:`~fhnn.data.table.Table`), its state there estimated by
+    :func:`estimate_states` from its last ``fit_window`` seconds (its measured velocities, if
+    any, are the first guess; its ``Fx, Fy``, else the forcing table where it covers them, are the
+    forces during the fit). Forces during the forecast come from ``forcing_table``
+    (:func:`~fhnn.data.table.read_forcing`), which must then cover it; without one there are none."""
+    if not (np.isfinite(duration) and duration > 0):
+        raise ConfigError(f"--duration must be > 0 s, got {duration!r}")
+    if not (np.isfinite(dt) and 0 < dt <= duration):
+        raise ConfigError(f"--dt must be > 0 s and at most the duration, got {dt!r}")
+    if not (np.isfinite(fit_window) and fit_window > 0):
+        raise ConfigError(f"--fit-window must be > 0 s, got {fit_window!r}")
+    if (initial is None) == (history is None):
+        raise ConfigError("give either an initial state or a history to start from, not both")
+    fit_rms: np.ndarray
+    if initial is not None:
+        initial = np.asarray(initial, dtype=float)
+        if initial.shape != (4,) or not np.all(np.isfinite(initial)):
+            raise ConfigError(
+                f"the initial state is x, y, vx, vy: four finite numbers, got {initial.tolist()}"
+            )
+        if not np.isfinite(t0):
+            raise ConfigError(f"--t0 must be finite, got {t0!r}")
+        ids, starts, start_t, fit_rms = ["initial"], initial[None], np.array([float(t0)]), np.array([np.nan])
+    else:
+        assert history is not None
+        ids = [tr.traj_id for tr in history.trajectories]
+        recent = []
+        for tr in history.trajectories:
+            keep = tr.t >= tr.t[-1] - fit_window - 1e-9
+            if keep.sum() < 3:
+                keep[-3:] = True
+            recent.append(keep)
+        size = max(int(k.sum()) for k in recent)
+        n = len(ids)
+        t = np.zeros((n, size))
+        pos = np.zeros((n, size, 2))
+        force = np.zeros((n, size, 2))
+        mask = np.zeros((n, size), dtype=bool)
+        guess = np.zeros((n, 2))
+        for i, (tr, keep) in enumerate(zip(history.trajectories, recent, strict=True)):
+            k = int(keep.sum())
+            tt = tr.t[keep]
+            t[i, :k], t[i, k:] = tt, tt[-1] + PAD_STEP * np.arange(1, size - k + 1)
+            pos[i, :k], mask[i, :k] = tr.pos[keep], True
+            f = (
+                tr.force[keep]
+                if tr.force is not None
+                else _forces_at(forcing_table, tr.traj_id, tt, required=False)
+            )
+            if f is not None:
+                force[i, :k] = f
+            guess[i] = tr.vel[keep][0] if tr.vel is not None else (pos[i, 1] - pos[i, 0]) / (tt[1] - tt[0])
+        starts, fit_rms = estimate_states(model, t, pos, mask=mask, force=force, guess_velocity=guess)
+        start_t = np.array([tr.t[-1] for tr in history.trajectories])
+    steps = max(1, round(duration / dt))
+    times = start_t[:, None] + np.linspace(0.0, duration, steps + 1)[None, :]
+    forces = np.zeros((*times.shape, 2))
+    for i, traj in enumerate(ids):
+        f = _forces_at(forcing_table, traj, times[i], required=True)
+        if f is not None:
+            forces[i] = f
+    states, ok = forecast(model, starts, times, forces)
+    return Forecast(ids=ids, t=times, states=states, ok=ok, fit_rms=fit_rms)
