@@ -39,6 +39,24 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
+#: The longest tests (one to five minutes each on 2 cores; none shares a module fixture), run
+#: first, so that the two xdist workers finish together rather than one waiting on a long test
+#: that started last.
+LONGEST_FIRST = (
+    "test_reproduce.py::test_quick_reproduction_runs_every_table_and_renders",
+    "test_faults.py::test_reproduction_killed_three_times",
+    "test_reproduce.py::test_ray_cluster_gives_the_numbers_of_the_local_executor",
+    "test_baselines.py::test_dissipative_hnn_fits",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        return next((i for i, name in enumerate(LONGEST_FIRST) if name in item.nodeid), len(LONGEST_FIRST))
+
+    items.sort(key=rank)
+
+
 #: Small data sets: every split present, short trajectories, fast to simulate.
 SMALL = dict(n_traj=6, duration=3.0, test_duration=6.0)
 

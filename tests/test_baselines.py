@@ -112,7 +112,7 @@ def test_energy_models_respond_to_a_known_force_as_the_known_mass(kind):
 
 def test_dissipative_hnn_fits_a_damped_oscillator_and_plain_hnn_cannot():
     damped = lambda s, t, f: spring(s, t, f, damping=0.8)  # noqa: E731
-    err_dhnn, _ = fit("dhnn", damped, forced=False, steps=3000, lbfgs=400)
+    err_dhnn, _ = fit("dhnn", damped, forced=False, lbfgs=300)
     err_hnn, _ = fit("hnn", damped, forced=False)
     assert err_dhnn < 2e-2, err_dhnn
     assert err_hnn > 3 * err_dhnn, (err_hnn, err_dhnn)  # a conservative model cannot dissipate
