@@ -8,9 +8,11 @@ import operator
 
 import equinox as eqx
 import h5py
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import xarray as xr
 
 from fhnn.cli.app import main
 from fhnn.data.dataset import Split, read_dataset, write_dataset
@@ -19,6 +21,7 @@ from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_t
 from fhnn.data.windows import Windows
 from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_metrics
 from fhnn.evaluation.predict import estimate_states, forecast
+from fhnn.experiments.exports import write_coefficients_csv, write_flow_netcdf
 from fhnn.models.base import AbstractVectorField
 from fhnn.physics.actuation import actuation_force, forcing
 from fhnn.physics.dynamics import EquationsOfMotion
@@ -250,6 +253,11 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     said = " ".join(capsys.readouterr().out.split())
     assert "coverage of the observed states" in said and "position noise seen" in said
     assert (run / "flow.png").exists() and (run / "coefficients.png").exists()
+    coefficients = read_csv_columns(run / "coefficients.csv")
+    assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l"]
+    assert coefficients["r"].size > 50 and np.all(coefficients["m_ax"] > 0)
+    with xr.open_dataset(run / "flow.nc", engine="h5netcdf") as flow_file:
+        assert set(flow_file.data_vars) == {"u", "v", "psi"} and flow_file["u"].dims == ("y", "x")
     assert read_dataset(data).extra["import"]["traj_ids"]  # unchanged by training
     # predict: from the end of observed tracks (first 2 s of each), and from a given state
     _, table = imported
@@ -415,3 +423,38 @@ def test_liu_weisberg_skill_by_hand() -> None:
     assert m["skill"] == pytest.approx(1 - 0.4 / (0.5 + 1.0 + 1.5 + 2.0))
     m = trajectory_metrics(pred, truth, t, 2.0)  # checkpoints at 1 and 2 s
     assert m["skill"] == pytest.approx(1 - 0.2 / 3.0)
+
+
+def read_csv_columns(path) -> dict[str, np.ndarray]:
+    import pyarrow.csv as pacsv
+
+    table = pacsv.read_csv(path)
+    return {name: table.column(name).to_numpy() for name in table.column_names}
+
+
+@pytest.mark.parametrize("scenario", ["steady_vortex", "time_varying_vortex"])
+def test_exported_flow_and_coefficients_are_the_models_own(scenario, tmp_path, rng) -> None:
+    dataset = small_dataset(scenario)
+    truth = dataset.equations()
+    path = write_flow_netcdf(truth.flow, dataset, tmp_path / "flow.nc")
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        steady = scenario == "steady_vortex"
+        assert ds["psi"].dims == (("y", "x") if steady else ("t", "y", "x"))
+        u, v, psi = (np.asarray(ds[k]).reshape(-1, ds.sizes["y"], ds.sizes["x"]) for k in ("u", "v", "psi"))
+        times = np.zeros(1) if steady else np.asarray(ds["t"])
+        x, y = np.asarray(ds["x"]), np.asarray(ds["y"])
+        if not steady:  # the training window
+            assert (times[0], times[-1]) == pytest.approx((dataset.train.t[0], dataset.train.t[-1]))
+    known = np.argwhere(np.isfinite(u))
+    assert 0.1 * u.size < known.shape[0] < u.size  # the data's neighbourhood only
+    for k, j, i in known[rng.choice(known.shape[0], 20, replace=False)]:
+        xy, t = jnp.asarray([x[i], y[j]]), jnp.asarray(times[k])
+        np.testing.assert_allclose(
+            [u[k, j, i], v[k, j, i]], truth.flow.velocity(xy, t), rtol=1e-12, atol=1e-15
+        )
+        assert psi[k, j, i] == pytest.approx(float(truth.flow.stream(xy, t)), rel=1e-12, abs=1e-15)
+    write_coefficients_csv(truth, dataset, tmp_path / "coefficients.csv")
+    grid = read_csv_columns(tmp_path / "coefficients.csv")
+    want = jax.vmap(truth.coefficients)(jnp.asarray(grid["r"]), jnp.asarray(grid["sigma"]))
+    got = np.stack([grid[name] for name in ("m_ax", "m_ay", "c_q", "c_l")], axis=1)
+    np.testing.assert_allclose(got, want, rtol=1e-12)

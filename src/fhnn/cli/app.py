@@ -673,18 +673,29 @@ def predict(
         typer.echo(",".join(str(v) if isinstance(v, str) else repr(float(v)) for v in row))
 
 
+def _exports(model: Any, dataset: Any, run_dir: Path) -> list[Path]:
+    """``coefficients.csv`` and ``flow.nc`` in the run folder (:mod:`fhnn.experiments.exports`)."""
+    from fhnn.experiments.exports import write_coefficients_csv, write_flow_netcdf
+
+    return [
+        write_coefficients_csv(model.eom, dataset, run_dir / "coefficients.csv"),
+        write_flow_netcdf(model.flow, dataset, run_dir / "flow.nc"),
+    ]
+
+
 def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> None:
     """``fhnn inspect`` on imported data: the learned coefficients and flow, no truth to compare."""
     from fhnn.evaluation.recovery import learned_coefficients
     from fhnn.experiments.figures import coefficient_figure, flow_figure
 
     coef = learned_coefficients(model.eom, dataset)
-    figures = flow_figure(model.flow, None, dataset, run_dir / "flow")
+    figures = _exports(model, dataset, run_dir)
+    figures += flow_figure(model.flow, None, dataset, run_dir / "flow")
     figures += coefficient_figure(
         model.coefficients, None, dataset, run_dir / "coefficients", flow_of=model.eom
     )
     if as_json:
-        typer.echo(json.dumps({"coefficients": coef, "figures": [str(f) for f in figures]}, indent=2))
+        typer.echo(json.dumps({"coefficients": coef, "written": [str(f) for f in figures]}, indent=2))
         return
     table = Table(
         title="learned coefficients over the (r, σ) the training data cover (σ in the learned flow)",
@@ -708,7 +719,7 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
             "the absolute masses and drag coefficients above are not determined by the data.",
             soft_wrap=True,
         )
-    stdout.print("figures: " + ", ".join(str(f) for f in figures))
+    stdout.print("written: " + ", ".join(str(f) for f in figures))
 
 
 @app.command()
@@ -719,9 +730,10 @@ def inspect(
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the recovery numbers as JSON.")] = False,
 ) -> None:
-    """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN.
-    On imported data (no truth): the learned coefficients over the region the data cover, and the
-    learned flow."""
+    """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN,
+    with the learned coefficients over the covered (r, σ) as coefficients.csv and the learned flow
+    on a grid as flow.nc (NetCDF-4). On imported data (no truth): the learned coefficients over
+    the region the data cover, and the learned flow."""
     from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
     from fhnn.experiments.figures import coefficient_figure, flow_figure
 
@@ -733,7 +745,8 @@ def inspect(
     coef = coefficient_recovery(model.coefficients, dataset)
     flow = flow_recovery(model.flow, dataset)
     truth = dataset.equations()
-    figures = flow_figure(model.flow, truth.flow, dataset, run_dir / "flow")
+    figures = _exports(model, dataset, run_dir)
+    figures += flow_figure(model.flow, truth.flow, dataset, run_dir / "flow")
     figures += coefficient_figure(model.coefficients, truth.coefficients, dataset, run_dir / "coefficients")
     init = dict(zip(("m_ax", "m_ay", "c_q", "c_l"), run.model_config.init_coefficients, strict=True))
     coef["_near_initial"] = [
@@ -743,7 +756,7 @@ def inspect(
     ]
     if as_json:
         typer.echo(
-            json.dumps({"coefficients": coef, "flow": flow, "figures": [str(f) for f in figures]}, indent=2)
+            json.dumps({"coefficients": coef, "flow": flow, "written": [str(f) for f in figures]}, indent=2)
         )
         return
     table = Table(title="coefficients over the (r, σ) the training data covers", title_justify="left")
@@ -792,7 +805,7 @@ def inspect(
         else ""
     )
     stdout.print(f"flow: relative L2 error {flow['rel_l2']:.3%} over {flow['points']} grid points{when}")
-    stdout.print("figures: " + ", ".join(str(f) for f in figures))
+    stdout.print("written: " + ", ".join(str(f) for f in figures))
 
 
 @app.command()

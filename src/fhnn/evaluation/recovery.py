@@ -42,7 +42,8 @@ def visited_r_sigma(eom: EquationsOfMotion, dataset: Dataset, *, max_points: int
 
 
 @eqx.filter_jit
-def _coefficients_at(coefficients: AbstractCoefficients, points: jax.Array) -> jax.Array:
+def coefficients_at(coefficients: AbstractCoefficients, points: jax.Array) -> jax.Array:
+    """``coefficients`` at the ``(r, σ)`` points ``(P, 2)`` [m, m/s], shape ``(P, 4)``."""
     return jax.vmap(coefficients)(points[:, 0], points[:, 1])
 
 
@@ -57,8 +58,8 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
     share of the drag and each coefficient's maximum relative error."""
     truth_eom = dataset.equations()
     points = visited_r_sigma(truth_eom, dataset)
-    got = np.asarray(_coefficients_at(learned, jnp.asarray(points)))
-    want = np.asarray(_coefficients_at(truth_eom.coefficients, jnp.asarray(points)))
+    got = np.asarray(coefficients_at(learned, jnp.asarray(points)))
+    want = np.asarray(coefficients_at(truth_eom.coefficients, jnp.asarray(points)))
     out: dict[str, Any] = {}
     rel_all = np.abs(got - want) / np.maximum(np.abs(want), 1e-12)
     for i, name in enumerate(COEFFICIENT_NAMES):
@@ -125,7 +126,7 @@ def learned_coefficients(learned: EquationsOfMotion, dataset: Dataset) -> dict[s
     learned flow); ``_coverage`` as for :func:`coefficient_recovery`; ``_by_sigma``: per σ band its
     bounds, points, the learned quadratic share of the drag and each coefficient's median."""
     points = visited_r_sigma(learned, dataset)
-    got = np.asarray(_coefficients_at(learned.coefficients, jnp.asarray(points)))
+    got = np.asarray(coefficients_at(learned.coefficients, jnp.asarray(points)))
     out: dict[str, Any] = {
         name: {
             "median": float(np.median(got[:, i])),
