@@ -21,6 +21,7 @@ from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_t
 from fhnn.data.windows import Windows
 from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_metrics
 from fhnn.evaluation.predict import estimate_states, forecast
+from fhnn.evaluation.recovery import RATIO_NAMES, coefficient_recovery, drag_ratios
 from fhnn.experiments.exports import write_coefficients_csv, write_flow_netcdf
 from fhnn.models.base import AbstractVectorField
 from fhnn.physics.actuation import actuation_force, forcing
@@ -253,6 +254,15 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     said = " ".join(capsys.readouterr().out.split())
     assert "coverage of the observed states" in said and "position noise seen" in said
     assert (run / "flow.png").exists() and (run / "coefficients.png").exists()
+    # the same run on data without known forces: masses and drag not determined, ratios shown
+    unforced = read_dataset(data)
+    unforced = type(unforced)(**{**unforced.__dict__, "extra": {**unforced.extra, "measured": ["positions"]}})
+    write_dataset(unforced, folder / "unforced.h5")
+    with pytest.raises(SystemExit) as info:
+        main(["inspect", str(run), str(folder / "unforced.h5")])
+    assert info.value.code == 0
+    said = " ".join(capsys.readouterr().out.split())
+    assert "are NOT determined by the data" in said and "c_l/(M+m_ax)" in said
     coefficients = read_csv_columns(run / "coefficients.csv")
     assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l"]
     assert coefficients["r"].size > 50 and np.all(coefficients["m_ax"] > 0)
@@ -458,3 +468,35 @@ def test_exported_flow_and_coefficients_are_the_models_own(scenario, tmp_path, r
     want = jax.vmap(truth.coefficients)(jnp.asarray(grid["r"]), jnp.asarray(grid["sigma"]))
     got = np.stack([grid[name] for name in ("m_ax", "m_ay", "c_q", "c_l")], axis=1)
     np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+class _Scaled(eqx.Module):
+    """Coefficients whose inertia ``M + m_a`` and drag are ``alpha`` times ``inner``'s."""
+
+    inner: eqx.Module
+    alpha: float
+    mass: float
+
+    def __call__(self, r, sigma):
+        m_ax, m_ay, c_q, c_l = self.inner(r, sigma)
+        a, m = self.alpha, self.mass
+        return jnp.stack([a * (m + m_ax) - m, a * (m + m_ay) - m, a * c_q, a * c_l])
+
+
+def test_without_forcing_only_the_drag_to_inertia_ratios_are_determined() -> None:
+    dataset = small_dataset("steady_vortex", actuation="none")
+    truth = dataset.equations()
+    mass = dataset.constants()["M"]
+    assert dataset.constants()["V"] * dataset.constants()["rho"] == mass  # neutrally buoyant
+    scaled = _Scaled(truth.coefficients, 1.3, mass)
+    other = eqx.tree_at(lambda e: e.coefficients, truth, scaled)
+    state, t = jnp.asarray(dataset.train.states_clean[0, 5]), jnp.asarray(0.5)
+    # unforced motion cannot tell the two bodies apart; a known force can
+    np.testing.assert_allclose(other(state, t, jnp.zeros(2)), truth(state, t, jnp.zeros(2)), rtol=1e-13)
+    assert np.abs(other(state, t, jnp.ones(2)) - truth(state, t, jnp.ones(2)))[2:].min() > 1e-3
+    rec = coefficient_recovery(scaled, dataset)
+    assert min(rec[k]["mean_rel"] for k in ("m_ax", "m_ay", "c_q", "c_l")) > 0.1
+    assert max(r["max_rel"] for r in rec["_ratios"].values()) < 1e-12
+    assert list(rec["_ratios"]) == list(RATIO_NAMES)
+    coef = np.array([[5.0, 10.0, 0.4, 3.0]])
+    np.testing.assert_allclose(drag_ratios(coef, 10.0), [[3.0 / 15, 3.0 / 20, 0.4 / 15, 0.4 / 20]])

@@ -713,12 +713,20 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
         f"{_fmt(cov['sigma_max'])} m/s; no ground truth: these are estimates, not recovery errors",
         soft_wrap=True,
     )
-    if "forces" not in dataset.measured:
+    forced = "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
+    if not forced:
         stdout.print(
-            "note: no known forcing in the data — only the ratios c / (M + m_a) are identifiable; "
-            "the absolute masses and drag coefficients above are not determined by the data.",
+            "note: no known forcing in the data (no Fx, Fy, or all zero) — the added masses and drag "
+            "coefficients above are NOT determined by the data (scaling inertia and drag together "
+            "changes nothing a neutrally buoyant body does); what is identifiable are the ratios:",
             soft_wrap=True,
         )
+        ratios = Table(title="identifiable ratios over the covered (r, σ)", title_justify="left")
+        for col in ("ratio", "median", "range"):
+            ratios.add_column(col, justify="right")
+        for name, r in coef["_ratios"].items():
+            ratios.add_row(name, _fmt(r["median"]), f"{_fmt(r['learned_min'])} – {_fmt(r['learned_max'])}")
+        stdout.print(ratios)
     stdout.print("written: " + ", ".join(str(f) for f in figures))
 
 
@@ -797,7 +805,12 @@ def inspect(
     if dataset.actuation == "none":
         stdout.print(
             "note: trained without actuation — only the ratios c / (M + m_a) are identifiable; "
-            "the absolute masses and drag coefficients above are not measured quantities."
+            "the absolute masses and drag coefficients above are not measured quantities. The ratios: "
+            + ", ".join(
+                f"{name} {r['mean_rel']:.2%} mean / {r['max_rel']:.2%} max rel. error"
+                for name, r in coef["_ratios"].items()
+            ),
+            soft_wrap=True,
         )
     when = (
         f", {len(flow['times'])} times over {flow['times'][0]:g}–{flow['times'][-1]:g} s"

@@ -51,6 +51,21 @@ def coefficients_at(coefficients: AbstractCoefficients, points: jax.Array) -> ja
 SIGMA_BANDS = (0.0, 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 
 
+#: The drag-to-inertia ratios that unforced motion determines: with no known force the
+#: equations of motion fix only ``c / (M + m_a)`` (a common scale of inertia and drag leaves the
+#: motion unchanged when the body is neutrally buoyant, ``ρV = M``).
+RATIO_NAMES = ("c_l/(M+m_ax)", "c_l/(M+m_ay)", "c_q/(M+m_ax)", "c_q/(M+m_ay)")
+
+
+def drag_ratios(coefficients: np.ndarray, mass: float) -> np.ndarray:
+    """:data:`RATIO_NAMES` [1/s, 1/s, 1/kg, 1/kg] from coefficients ``(P, 4)`` (``m_ax, m_ay, c_q,
+    c_l``) and the dry mass ``M`` [kg], shape ``(P, 4)``."""
+    m_ax, m_ay, c_q, c_l = coefficients.T
+    return np.stack(
+        [c_l / (mass + m_ax), c_l / (mass + m_ay), c_q / (mass + m_ax), c_q / (mass + m_ay)], axis=1
+    )
+
+
 def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dict[str, Any]:
     """Per coefficient: ``mean_rel``, ``max_rel`` error and the ranges of learned and true values;
     ``_coverage``: the (r, σ) ranges [m, m/s]; ``_by_sigma``: per σ band (quantiles
@@ -74,6 +89,13 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
         }
     out["_coverage"] = _coverage(points)
     out["_by_sigma"] = _by_sigma(points, want, dataset, lambda inside: rel_all[inside].max(axis=0))
+    mass = dataset.constants()["M"]
+    got_r, want_r = drag_ratios(got, mass), drag_ratios(want, mass)
+    rel_r = np.abs(got_r - want_r) / np.maximum(np.abs(want_r), 1e-300)
+    out["_ratios"] = {
+        name: {"mean_rel": float(rel_r[:, i].mean()), "max_rel": float(rel_r[:, i].max())}
+        for i, name in enumerate(RATIO_NAMES)
+    }
     return out
 
 
@@ -137,6 +159,15 @@ def learned_coefficients(learned: EquationsOfMotion, dataset: Dataset) -> dict[s
     }
     out["_coverage"] = _coverage(points)
     out["_by_sigma"] = _by_sigma(points, got, dataset, lambda inside: np.median(got[inside], axis=0))
+    ratios = drag_ratios(got, dataset.constants()["M"])
+    out["_ratios"] = {
+        name: {
+            "median": float(np.median(ratios[:, i])),
+            "learned_min": float(ratios[:, i].min()),
+            "learned_max": float(ratios[:, i].max()),
+        }
+        for i, name in enumerate(RATIO_NAMES)
+    }
     return out
 
 
