@@ -31,6 +31,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -120,8 +122,11 @@ def forecast_errors(
 
     ours = np.isin(table["traj_id"].astype(str), ids)
     early = ours & (table["t"] <= 1.0 + 1e-9)
-    write_table({c: table[c][early] for c in ("traj_id", "t", "x", "y", "Fx", "Fy")}, folder / "history.csv")
-    write_table({c: table[c][ours] for c in ("traj_id", "t", "Fx", "Fy")}, folder / "forcing.csv")
+    forced = "Fx" in table
+    history = {c: table[c][early] for c in ("traj_id", "t", "x", "y", "Fx", "Fy") if c in table}
+    write_table(history, folder / "history.csv")
+    if forced:
+        write_table({c: table[c][ours] for c in ("traj_id", "t", "Fx", "Fy")}, folder / "forcing.csv")
     pred_path = folder / "forecast.csv"
     pred_path.unlink(missing_ok=True)
     start = time.perf_counter()
@@ -130,8 +135,7 @@ def forecast_errors(
         str(run),
         "--history",
         str(folder / "history.csv"),
-        "--forcing",
-        str(folder / "forcing.csv"),
+        *(["--forcing", str(folder / "forcing.csv")] if forced else []),
         "--duration",
         f"{max(horizons):g}",
         "--dt",
@@ -159,6 +163,14 @@ def forecast_errors(
         },
         "liu_weisberg_skill": float(np.mean(skills)),
     }
+
+
+def says_not_identifiable(run: Path, data: Path) -> bool:
+    """Whether ``fhnn inspect`` (a fresh process, as a user runs it) says the masses and drag
+    coefficients are not determined by the data."""
+    cmd = [sys.executable, "-c", "from fhnn.cli.app import main; main()", "inspect", str(run), str(data)]
+    shown = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+    return "NOT determined by the data" in " ".join(shown.split())
 
 
 def import_speed(folder: Path) -> dict:
@@ -206,22 +218,34 @@ def main() -> None:
         help="score a finished run of the same settings instead of training",
     )
     p.add_argument("--smoother", default="spline", help="fhnn import --smoother")
+    p.add_argument(
+        "--no-forcing",
+        action="store_true",
+        help="the same data simulated without actuation and exported without Fx, Fy (identifiability)",
+    )
     args = p.parse_args()
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     sc = get_scenario("steady_vortex")
-    fine_path = out / f"fine_seed{args.data_seed}.h5"
+    suffix = "_noforce" if args.no_forcing else ""
+    fine_path = out / f"fine_seed{args.data_seed}{suffix}.h5"
     if not fine_path.exists():
         config = SimulationConfig.for_scenario(
-            sc, n_traj=70, duration=20.0, test_duration=20.0, dt=0.01, actuation="random", seed=args.data_seed
+            sc,
+            n_traj=70,
+            duration=20.0,
+            test_duration=20.0,
+            dt=0.01,
+            actuation="none" if args.no_forcing else "random",
+            seed=args.data_seed,
         )
         write_dataset(simulate_dataset(sc, config), fine_path)
     fine = read_dataset(fine_path)
     observed = dict(step=0.05, jitter=0.3, noise=1e-3, drop=0.05, seed=args.data_seed + 1)
-    table = observe(fine, **observed)
+    table = observe(fine, **observed, forces=not args.no_forcing)
     table_clean = observe(fine, **{**observed, "noise": 0.0}, velocities=True)
-    csv = write_table(table, out / f"track_seed{args.data_seed}.csv")
-    data = out / f"track_seed{args.data_seed}.h5"
+    csv = write_table(table, out / f"track_seed{args.data_seed}{suffix}.csv")
+    data = out / f"track_seed{args.data_seed}{suffix}.h5"
     start = time.perf_counter()
     data.unlink(missing_ok=True)
     area = str(fine.body_params["A"])
@@ -244,7 +268,7 @@ def main() -> None:
             vel_err.append((split.states[i, :k, 2:] - true_v).ravel())
     vel_rms = float(np.sqrt(np.mean(np.concatenate(vel_err) ** 2)))
     tag = "_".join(s.replace("=", "").replace(".", "") for s in args.set) or "defaults"
-    tag += "" if args.smoother == "spline" else f"_{args.smoother}"
+    tag += ("" if args.smoother == "spline" else f"_{args.smoother}") + suffix
     run = out / f"run_seed{args.data_seed}_{tag}"
     sets = [x for s in args.set for x in ("--set", s)]
     start = time.perf_counter()
@@ -271,6 +295,8 @@ def main() -> None:
         "dropped_rows": record["dropped_rows"],
         "train_seconds": train_seconds,
         "coefficients_mean_rel": {k: coef[k]["mean_rel"] for k in ("m_ax", "m_ay", "c_q", "c_l")},
+        "ratios_mean_rel": {k: v["mean_rel"] for k, v in coef["_ratios"].items()},
+        "inspect_says_not_identifiable": says_not_identifiable(run, data),
         "c_q_by_sigma": [
             {
                 "sigma": [b["sigma_lo"], b["sigma_hi"]],
@@ -297,6 +323,11 @@ def main() -> None:
         "coefficients mean rel. error: "
         + ", ".join(f"{k} {v:.2%}" for k, v in result["coefficients_mean_rel"].items())
         + f" (target 3 %); flow {flow['rel_l2']:.2%} (target 2 %)"
+    )
+    print(
+        "ratios mean rel. error: "
+        + ", ".join(f"{k} {v:.2%}" for k, v in result["ratios_mean_rel"].items())
+        + f"; inspect says masses not identifiable: {result['inspect_says_not_identifiable']}"
     )
     print(
         f"test RMSE(pos) at 5 s vs truth {errors['5']['imported_start']['rmse_pos_vs_truth']:.2e} m "
