@@ -113,9 +113,10 @@ def test_energy_models_respond_to_a_known_force_as_the_known_mass(kind):
 def test_dissipative_hnn_fits_a_damped_oscillator_and_plain_hnn_cannot():
     damped = lambda s, t, f: spring(s, t, f, damping=0.8)  # noqa: E731
     err_dhnn, _ = fit("dhnn", damped, forced=False, lbfgs=300)
-    err_hnn, _ = fit("hnn", damped, forced=False)
+    # a conservative model cannot dissipate, however long it trains (0.26 after 600 steps)
+    err_hnn, _ = fit("hnn", damped, forced=False, steps=600, lbfgs=0)
     assert err_dhnn < 2e-2, err_dhnn
-    assert err_hnn > 3 * err_dhnn, (err_hnn, err_dhnn)  # a conservative model cannot dissipate
+    assert err_hnn > 3 * err_dhnn, (err_hnn, err_dhnn)
 
 
 def test_neural_ode_fits_a_linear_system():
