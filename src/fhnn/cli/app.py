@@ -598,8 +598,11 @@ def predict(
         typer.Option("--dt", help="Output step in seconds [default: the history's median step, or 0.05]."),
     ] = None,
     fit_window: Annotated[
-        float, typer.Option("--fit-window", help="Seconds of each history the start state is fitted to.")
-    ] = 1.0,
+        float | None,
+        typer.Option(
+            "--fit-window", help="Seconds of each history the start state is fitted to [default: 1]."
+        ),
+    ] = None,
     output: Annotated[
         Path | None,
         typer.Option(
@@ -610,8 +613,8 @@ def predict(
     """Forecast with a trained model from a given state or from the end of observed tracks: columns
     traj_id, t, x, y, vx, vy. A history's start state is the one the model explains best (a least
     squares fit of its trajectory to the last observed positions), not a smoother's end point."""
-    from fhnn.data.table import read_forcing, read_table, write_table
-    from fhnn.evaluation.predict import predict_tracks
+    from fhnn.data.table import check_table_name, read_forcing, read_table, write_table
+    from fhnn.evaluation.predict import FIT_WINDOW, predict_tracks
     from fhnn.models.base import AbstractVectorField
     from fhnn.training.run import Run
 
@@ -627,8 +630,7 @@ def predict(
             raise ConfigError(f"--initial expects x,y,vx,vy as four numbers, got {initial!r}")
     if output is not None:
         check_output_path(output)
-        if output.suffix.lower() not in (".csv", ".parquet"):
-            raise ConfigError(f"{output}: give a .csv or .parquet file name")
+        check_table_name(output)
     tracks = read_table(history) if history is not None else None
     forces = read_forcing(forcing) if forcing is not None else None
     run = Run.load(run_dir)
@@ -649,7 +651,7 @@ def predict(
         t0=t0,
         history=tracks,
         forcing_table=forces,
-        fit_window=fit_window,
+        fit_window=FIT_WINDOW if fit_window is None else fit_window,
     )
     if forces is None:
         err.print("note: no --forcing: the forecast assumes no external force", highlight=False)
@@ -689,13 +691,13 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
     from fhnn.experiments.figures import coefficient_figure, flow_figure
 
     coef = learned_coefficients(model.eom, dataset)
-    figures = _exports(model, dataset, run_dir)
-    figures += flow_figure(model.flow, None, dataset, run_dir / "flow")
-    figures += coefficient_figure(
+    written = _exports(model, dataset, run_dir)
+    written += flow_figure(model.flow, None, dataset, run_dir / "flow")
+    written += coefficient_figure(
         model.coefficients, None, dataset, run_dir / "coefficients", flow_of=model.eom
     )
     if as_json:
-        typer.echo(json.dumps({"coefficients": coef, "written": [str(f) for f in figures]}, indent=2))
+        typer.echo(json.dumps({"coefficients": coef, "written": [str(f) for f in written]}, indent=2))
         return
     table = Table(
         title="learned coefficients over the (r, σ) the training data cover (σ in the learned flow)",
@@ -727,7 +729,7 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
         for name, r in coef["_ratios"].items():
             ratios.add_row(name, _fmt(r["median"]), f"{_fmt(r['learned_min'])} – {_fmt(r['learned_max'])}")
         stdout.print(ratios)
-    stdout.print("written: " + ", ".join(str(f) for f in figures))
+    stdout.print("written: " + ", ".join(str(f) for f in written))
 
 
 @app.command()
@@ -753,9 +755,9 @@ def inspect(
     coef = coefficient_recovery(model.coefficients, dataset)
     flow = flow_recovery(model.flow, dataset)
     truth = dataset.equations()
-    figures = _exports(model, dataset, run_dir)
-    figures += flow_figure(model.flow, truth.flow, dataset, run_dir / "flow")
-    figures += coefficient_figure(model.coefficients, truth.coefficients, dataset, run_dir / "coefficients")
+    written = _exports(model, dataset, run_dir)
+    written += flow_figure(model.flow, truth.flow, dataset, run_dir / "flow")
+    written += coefficient_figure(model.coefficients, truth.coefficients, dataset, run_dir / "coefficients")
     init = dict(zip(("m_ax", "m_ay", "c_q", "c_l"), run.model_config.init_coefficients, strict=True))
     coef["_near_initial"] = [
         n
@@ -764,7 +766,7 @@ def inspect(
     ]
     if as_json:
         typer.echo(
-            json.dumps({"coefficients": coef, "flow": flow, "written": [str(f) for f in figures]}, indent=2)
+            json.dumps({"coefficients": coef, "flow": flow, "written": [str(f) for f in written]}, indent=2)
         )
         return
     table = Table(title="coefficients over the (r, σ) the training data covers", title_justify="left")
@@ -818,7 +820,7 @@ def inspect(
         else ""
     )
     stdout.print(f"flow: relative L2 error {flow['rel_l2']:.3%} over {flow['points']} grid points{when}")
-    stdout.print("written: " + ", ".join(str(f) for f in figures))
+    stdout.print("written: " + ", ".join(str(f) for f in written))
 
 
 @app.command()

@@ -129,6 +129,25 @@ def _open(
     return path, arrow, names
 
 
+def _reject_infinite(path: Path, values: dict[str, np.ndarray], ids: np.ndarray | None) -> None:
+    """An infinite value in any column is an error naming its column (trajectory) and row."""
+    for name, column in values.items():
+        bad = np.flatnonzero(np.isinf(column))
+        if bad.size:
+            row = int(bad[0])
+            where = f", trajectory {ids[row]!r}" if ids is not None else ""
+            raise DataFormatError(f"{path}: column {name!r}{where}, row {row + 1}: infinite value")
+
+
+def _reject_same_times(path: Path, t: np.ndarray, rows: np.ndarray, who: str) -> None:
+    """Two of the sorted times ``t`` (table rows ``rows``, counted from 0) equal: an error naming
+    both rows, prefixed by ``who``."""
+    same = np.flatnonzero(np.diff(t) == 0)
+    if same.size:
+        r1, r2 = sorted(int(r) + 1 for r in rows[same[0] : same[0] + 2])
+        raise DataFormatError(f"{path}: {who}rows {r1} and {r2} have the same time t = {t[same[0]]:g} s")
+
+
 def read_table(path: str | os.PathLike[str]) -> Table:
     """Read and check a trajectory table (see the module docstring)."""
     path, arrow, names = _open(path, "a table", REQUIRED, COLUMNS)
@@ -144,13 +163,7 @@ def read_table(path: str | os.PathLike[str]) -> Table:
         [("" if v is None else str(v)) for v in arrow.column("traj_id").to_pylist()], dtype=object
     )
     values = {c: _numeric(path, c, arrow.column(c)) for c in names if c != "traj_id"}
-    for name, column in values.items():
-        bad = np.flatnonzero(np.isinf(column))
-        if bad.size:
-            row = int(bad[0])
-            raise DataFormatError(
-                f"{path}: column {name!r}, trajectory {ids[row]!r}, row {row + 1}: infinite value"
-            )
+    _reject_infinite(path, values, ids)
     gap = np.zeros(rows, dtype=bool)
     for column in values.values():
         gap |= np.isnan(column)
@@ -167,12 +180,7 @@ def read_table(path: str | os.PathLike[str]) -> Table:
         rows_of = order[a:b]
         traj_id = str(sorted_ids[a])
         t = values["t"][rows_of]
-        same = np.flatnonzero(np.diff(t) == 0)
-        if same.size:
-            r1, r2 = sorted(int(r) + 1 for r in rows_of[same[0] : same[0] + 2])
-            raise DataFormatError(
-                f"{path}: trajectory {traj_id!r}: rows {r1} and {r2} have the same time t = {t[same[0]]:g} s"
-            )
+        _reject_same_times(path, t, rows_of, f"trajectory {traj_id!r}: ")
         if t.size < MIN_SAMPLES:
             raise DataFormatError(
                 f"{path}: trajectory {traj_id!r} has {t.size} sample(s) (row {int(rows_of[0]) + 1}); "
@@ -195,10 +203,7 @@ def read_forcing(path: str | os.PathLike[str]) -> dict[str | None, tuple[np.ndar
     if arrow.num_rows == 0:
         raise DataFormatError(f"{path}: the table has no rows")
     values = {c: _numeric(path, c, arrow.column(c)) for c in FORCING_COLUMNS}
-    for name, column in values.items():
-        bad = np.flatnonzero(np.isinf(column))
-        if bad.size:
-            raise DataFormatError(f"{path}: column {name!r}, row {int(bad[0]) + 1}: infinite value")
+    _reject_infinite(path, values, None)
     if "traj_id" in names:
         ids = np.asarray([("" if v is None else str(v)) for v in arrow.column("traj_id").to_pylist()])
     else:
@@ -213,10 +218,7 @@ def read_forcing(path: str | os.PathLike[str]) -> dict[str | None, tuple[np.ndar
         name = "the table" if key is None else f"trajectory {key!r}"
         if t.size < 2:
             raise DataFormatError(f"{path}: {name} has {t.size} row(s) with values; at least 2 are needed")
-        same = np.flatnonzero(np.diff(t) == 0)
-        if same.size:
-            r1, r2 = sorted(int(r) + 1 for r in rows[same[0] : same[0] + 2])
-            raise DataFormatError(f"{path}: rows {r1} and {r2} have the same time t = {t[same[0]]:g} s")
+        _reject_same_times(path, t, rows, "" if key is None else f"{name}: ")
         out[key] = (t, np.stack([values["Fx"][rows], values["Fy"][rows]], axis=1))
     if not out:
         raise DataFormatError(f"{path}: every row has a missing value")
@@ -454,19 +456,24 @@ def observe(
     return {c: table[c][order] for c in keep}
 
 
+def check_table_name(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a :class:`Path` if it names a ``.csv`` or ``.parquet`` file; else ConfigError."""
+    path = Path(path)
+    if path.suffix.lower() not in (".csv", ".parquet"):
+        raise ConfigError(f"{path}: give a .csv or .parquet file name")
+    return path
+
+
 def write_table(columns: dict[str, np.ndarray], path: str | os.PathLike[str]) -> Path:
     """Write a table of named columns as ``.csv`` or ``.parquet`` (by the suffix), atomically."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
     import pyarrow.parquet as pq
 
-    path = Path(path)
+    path = check_table_name(path)
     arrow = pa.table({name: pa.array(values) for name, values in columns.items()})
-    suffix = path.suffix.lower()
-    if suffix not in (".csv", ".parquet"):
-        raise ConfigError(f"{path}: give a .csv or .parquet file name")
     with atomic_output(path) as tmp:
-        if suffix == ".csv":
+        if path.suffix.lower() == ".csv":
             pacsv.write_csv(arrow, tmp)
         else:
             pq.write_table(arrow, tmp)
@@ -478,6 +485,7 @@ __all__ = [
     "ImportSettings",
     "Table",
     "Trajectory",
+    "check_table_name",
     "observe",
     "parse_split",
     "read_forcing",

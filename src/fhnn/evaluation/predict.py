@@ -22,9 +22,9 @@ import numpy as np
 
 from fhnn.data.table import PAD_STEP, Table
 from fhnn.errors import ConfigError
-from fhnn.models.base import BLOW_UP, ROLLOUT_TOL, STEPS_PER_SAMPLE, AbstractVectorField
+from fhnn.models.base import ROLLOUT_TOL, AbstractVectorField
 from fhnn.physics.actuation import forcing, no_actuation
-from fhnn.physics.integrators import rk4_solve, solve_forced_batch
+from fhnn.physics.integrators import rk4_solve
 
 Array = jax.Array
 
@@ -157,21 +157,8 @@ def forecast(
     not ok."""
     start = np.asarray(start, dtype=float)
     t = np.asarray(t, dtype=float)
-    n = start.shape[0]
     force = np.zeros((*t.shape, 2)) if force is None else np.asarray(force, dtype=float)
-    bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(start)))))
-    states, ok = solve_forced_batch(
-        model,
-        jnp.asarray(start),
-        jnp.asarray(no_actuation(n)),
-        jnp.asarray(t),
-        rtol,
-        atol,
-        STEPS_PER_SAMPLE * (t.shape[-1] - 1) + 1000,
-        bound,
-        jnp.asarray(force),
-    )
-    states = np.asarray(states)
+    states, ok = model.solve(start, t, no_actuation(start.shape[0]), force, rtol, atol)
     return states, np.asarray(ok) & np.all(np.isfinite(states), axis=(1, 2))
 
 

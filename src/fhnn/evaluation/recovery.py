@@ -171,14 +171,30 @@ def learned_coefficients(learned: EquationsOfMotion, dataset: Dataset) -> dict[s
     return out
 
 
-def flow_grid(dataset: Dataset, *, n: int = 60, reach: float = 0.25) -> np.ndarray:
-    """Grid points ``(P, 2)`` in the training data's bounding box within ``reach`` m of a sample."""
+def flow_box(
+    dataset: Dataset, *, n: int = 60, reach: float = 0.25
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An ``n × n`` grid over the training positions' bounding box: ``x`` ``(n,)``, ``y`` ``(n,)``
+    [m] and ``near`` ``(n, n)`` (indexed ``[y, x]``), true within ``reach`` m of a sample."""
     pos = dataset.train.states_clean[dataset.train.mask][:, :2]
     lo, hi = pos.min(axis=0), pos.max(axis=0)
-    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
-    grid = np.column_stack([gx.ravel(), gy.ravel()])
-    dist, _ = cKDTree(pos).query(grid)
-    return grid[dist <= reach]
+    x, y = np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n)
+    gx, gy = np.meshgrid(x, y)
+    dist, _ = cKDTree(pos).query(np.column_stack([gx.ravel(), gy.ravel()]))
+    return x, y, (dist <= reach).reshape(n, n)
+
+
+def flow_grid(dataset: Dataset, *, n: int = 60, reach: float = 0.25) -> np.ndarray:
+    """Grid points ``(P, 2)`` in the training data's bounding box within ``reach`` m of a sample."""
+    x, y, near = flow_box(dataset, n=n, reach=reach)
+    gx, gy = np.meshgrid(x, y)
+    return np.column_stack([gx.ravel(), gy.ravel()])[near.ravel()]
+
+
+def window_times(dataset: Dataset, n_times: int = 16) -> np.ndarray:
+    """``n_times`` evenly spaced times [s] over the training trajectories' time window."""
+    times = dataset.train.times[dataset.train.mask]
+    return np.linspace(float(times.min()), float(times.max()), n_times)
 
 
 def flow_recovery(
@@ -196,7 +212,7 @@ def flow_recovery(
     if t is not None:
         times = np.asarray([float(t)])
     elif truth.time_dependent:
-        times = np.linspace(float(dataset.train.t[0]), float(dataset.train.t[-1]), n_times)
+        times = window_times(dataset, n_times)
     else:
         times = np.zeros(1)
     grid = jnp.asarray(flow_grid(dataset))

@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from fhnn.data.dataset import Dataset
 from fhnn.data.table import write_table
-from fhnn.evaluation.recovery import coefficients_at, visited_r_sigma
+from fhnn.evaluation.recovery import coefficients_at, flow_box, visited_r_sigma, window_times
 from fhnn.files import atomic_output
 from fhnn.physics.body import COEFFICIENT_NAMES
 from fhnn.physics.dynamics import EquationsOfMotion
@@ -71,17 +71,11 @@ def write_flow_netcdf(
     docstring) to ``path`` (``.nc``)."""
     import xarray as xr
 
-    train = dataset.train
-    pos = train.states_clean[train.mask][:, :2]
-    lo, hi = pos.min(axis=0), pos.max(axis=0)
-    x, y = np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n)
+    x, y, near = flow_box(dataset, n=n, reach=reach)
     gx, gy = np.meshgrid(x, y)  # (y, x)
     points = np.column_stack([gx.ravel(), gy.ravel()])
-    far = (cKDTree(pos).query(points)[0] > reach).reshape(n, n)
     steady = not flow.time_dependent
-    times = (
-        np.zeros(1) if steady else np.linspace(float(train.times.min()), float(train.times.max()), n_times)
-    )
+    times = np.zeros(1) if steady else window_times(dataset, n_times)
 
     @eqx.filter_jit
     def fields(f: AbstractFlow, xy: jax.Array, ts: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -95,7 +89,7 @@ def write_flow_netcdf(
     vel = vel.reshape(times.size, n, n, 2)
     psi = psi.reshape(times.size, n, n)
     for a in (vel[..., 0], vel[..., 1], psi):
-        a[:, far] = np.nan
+        a[:, ~near] = np.nan
     dims = ("t", "y", "x")
     data = {
         "u": (dims, vel[..., 0], {"units": "m s-1", "long_name": "learned flow velocity, x component"}),

@@ -167,19 +167,34 @@ class AbstractVectorField(AbstractModel):
         """Adaptive Dopri8 from ``start[:, 0]`` whose steps land on every sample time (no
         interpolation error). A state beyond :data:`BLOW_UP` times the initial scale, or running
         out of :data:`STEPS_PER_SAMPLE` steps per interval, fails the trajectory."""
-        y0 = start[:, 0]
+        return self.solve(start[:, 0], t, split.actuation, split.force_residual[:, : t.shape[-1]], rtol, atol)
+
+    def solve(
+        self,
+        y0: np.ndarray,
+        t: np.ndarray,
+        actuation: np.ndarray,
+        residual: np.ndarray,
+        rtol: float = ROLLOUT_TOL,
+        atol: float = ROLLOUT_TOL,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """States ``(N, T, 4)`` at the times ``t`` ``(T,)`` or ``(N, T)`` from ``y0`` ``(N, 4)`` at
+        ``t[..., 0]``, under the sinusoids ``actuation`` ``(N, 2, 3, 3)`` plus the linear
+        interpolant of ``residual`` ``(N, T, 2)`` [N] (:func:`~fhnn.physics.actuation.forcing`),
+        and ``ok`` ``(N,)``: adaptive Dopri8 landing on every time; a state beyond
+        :data:`BLOW_UP` times the initial scale, or running out of :data:`STEPS_PER_SAMPLE` steps
+        per interval, fails the trajectory."""
         max_steps = STEPS_PER_SAMPLE * (t.shape[-1] - 1) + 1000
         bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(y0)))))
-        residual = jnp.asarray(split.force_residual[:, : t.shape[-1]])
         ys, ok = solve_forced_batch(
             self,
             jnp.asarray(y0),
-            jnp.asarray(split.actuation),
+            jnp.asarray(actuation),
             jnp.asarray(t),
             rtol,
             atol,
             max_steps,
             bound,
-            residual,
+            jnp.asarray(residual),
         )
         return np.asarray(ys), np.asarray(ok)
