@@ -3,6 +3,10 @@ step, the warm-up part without the stream MLP, and the commands' compilation cac
 
 from __future__ import annotations
 
+import json
+import shutil
+from pathlib import Path
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -10,12 +14,15 @@ import numpy as np
 import pytest
 
 import fhnn.training.trainer as trainer_module
+from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.models.fhnn import FHNNConfig
 from fhnn.models.registry import MODELS
+from fhnn.physics.scenarios import get_scenario
 from fhnn.runtime import CACHE_ENV, default_cache_dir
+from fhnn.training.run import Run
 from fhnn.training.trainer import ADAM_FIELDS, PENALTY_FREE_MIN_STEPS, TrainConfig, Trainer, adam_step
 
-from .conftest import small_dataset
+from .conftest import SMALL, small_dataset
 
 
 def arrays(tree):
@@ -31,18 +38,24 @@ def fresh(data, seed=0, **model):
     return MODELS["fhnn"].make(FHNNConfig(width=8, depth=2, **model), MODELS["fhnn"].arguments(data), seed)
 
 
-def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, monkeypatch):
-    """The Adam step, the validation and the quasi-Newton iteration read data, scales and keys as
-    arguments and only the fields they use as static configuration: a second run with another seed
-    and validation interval reuses all three programs (no Python trace of the loss at all)."""
-    traces = []
+@pytest.fixture
+def traces(monkeypatch):
+    """A list that grows by one each time the trainer's loss is traced (run in Python)."""
+    calls = []
     original = trainer_module.loss_terms
 
     def counting(model, batch, scales):
-        traces.append(1)
+        calls.append(1)
         return original(model, batch, scales)
 
     monkeypatch.setattr(trainer_module, "loss_terms", counting)
+    return calls
+
+
+def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, traces):
+    """The Adam step, the validation and the quasi-Newton iteration read data, scales and keys as
+    arguments and only the fields they use as static configuration: a second run with another seed
+    and validation interval reuses all three programs (no Python trace of the loss at all)."""
 
     def train(seed, val_every):
         config = TrainConfig(
@@ -57,6 +70,84 @@ def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, monkeypatch):
     assert first > 0
     assert train(7, 4) == first  # nothing traced again
     assert TrainConfig(seed=1, val_every=3).only(ADAM_FIELDS) == TrainConfig().only(ADAM_FIELDS)
+
+
+def test_other_data_bodies_and_ablations_share_the_programs_and_never_move_the_constants(data, traces):
+    """FHNN's data-derived constants (input scales, radius range, body mass, ρ, A, V) and the
+    ablation mask are array leaves behind stop_gradient, not static fields: a model of the same
+    architecture on another scenario (other body, other scales) or with the added mass or linear
+    drag ablated runs the same compiled Adam step — nothing is traced again — and training leaves
+    every constant bit-identical."""
+    scenario = get_scenario("obstacle", mass=14.0, area=0.03)
+    other = simulate_dataset(
+        scenario,
+        SimulationConfig.for_scenario(scenario, **{**SMALL, "n_traj": 6, "duration": 2.0, "dt": data.dt}),
+    )
+    assert other.constants()["M"] != data.constants()["M"]
+    assert len(Trainer(TrainConfig(), other.train, other.val).train_pairs) == len(
+        Trainer(TrainConfig(), data.train, data.val).train_pairs
+    )
+    config = TrainConfig(steps=3, val_every=3, batch_size=16)
+
+    def train(dataset, **model):
+        tr = Trainer(config, dataset.train, dataset.val)
+        start = fresh(dataset, **model)
+        end = tr.run(tr.init(start)).model
+        return start, end, len(traces)
+
+    start, end, first = train(data)
+    constants = lambda m: (  # noqa: E731
+        m.flow.length_scale, m.flow.psi_scale, m.flow.time_scale, m.coefficients.r_scale,
+        m.coefficients.sigma_scale, m.coefficients.r_range, m.coefficients.mask,
+        m.eom.mass, m.eom.rho, m.eom.area, m.eom.volume,
+    )  # fmt: skip
+    for a, b in zip(constants(start), constants(end), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert any(not np.array_equal(a, b) for a, b in zip(arrays(start), arrays(end), strict=True))
+    for model in ({}, {"ablation": "no_added_mass"}, {"ablation": "no_linear_drag"}):
+        s2, e2, count = train(other, **model)
+        assert count == first, model  # the same program
+        assert float(e2.eom.mass) == other.constants()["M"] != float(end.eom.mass)
+        for a, b in zip(constants(s2), constants(e2), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # the constants do matter: the ablation mask is what switches the added mass off
+    coefs = lambda m: np.asarray(m.coefficients(jnp.asarray(1.0), jnp.asarray(0.2)))  # noqa: E731
+    assert coefs(fresh(data, ablation="no_added_mass"))[:2].tolist() == [0.0, 0.0]
+    assert np.all(coefs(fresh(data))[:2] > 0)
+
+
+def test_a_format_1_run_loads_with_its_constants_and_predicts_as_it_did(tmp_path):
+    """A run saved before the constants were arrays (run format 1: fixture written by fhnn at
+    commit 32d21a1) loads, resumes its optimiser state, and predicts what it predicted then."""
+    fixture = Path(__file__).parent / "fixtures" / "run_format1"
+    shutil.copytree(fixture, tmp_path / "f")
+    run = Run.load(tmp_path / "f" / "run")
+    assert json.loads((tmp_path / "f" / "run" / "run.json").read_text())["format_version"] == 1
+    expected = json.loads((fixture / "expected.json").read_text())
+    s, t, f = (jnp.asarray(expected[k]) for k in ("states", "t", "force"))
+    for name, model in (("model", run.state.model), ("best", run.state.best_model)):
+        np.testing.assert_allclose(
+            np.asarray(jax.vmap(model)(s, t, f)), expected[name], rtol=1e-13, atol=1e-15
+        )
+    assert float(run.state.model.flow.length_scale) == run.args["length_scale"]
+    assert np.asarray(run.state.model.coefficients.r_range).tolist() == run.args["r_range"]
+    # the Adam state of a format-1 run has zero moments for the constants and goes on training
+    mu = run.state.opt_state[0].mu
+    assert float(mu.eom.mass) == 0.0 and float(mu.eom.flow.length_scale) == 0.0
+    assert np.any(np.asarray(mu.eom.flow.linear) != 0)
+    dataset = run.dataset()
+    config = run.train_config
+    tr = Trainer(config, dataset.train, dataset.val)
+    args = (run.state.model, run.state.opt_state, jnp.asarray(1), tr._train, tr.scales, tr._key)
+    moved, opt_state, terms = adam_step(*args, config.only(ADAM_FIELDS), True)
+    assert terms["skipped"] == 0.0 and float(moved.eom.mass) == float(run.state.model.eom.mass)
+    run.state.model, run.state.opt_state = moved, opt_state
+    run.save()
+    again = Run.load(tmp_path / "f" / "run")
+    assert json.loads((tmp_path / "f" / "run" / "run.json").read_text())["format_version"] == 2
+    np.testing.assert_array_equal(
+        np.asarray(jax.vmap(again.state.model)(s, t, f)), np.asarray(jax.vmap(run.state.model)(s, t, f))
+    )
 
 
 def test_the_penalty_free_step_is_the_same_step_once_the_weight_is_zero(data):

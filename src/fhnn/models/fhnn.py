@@ -140,13 +140,15 @@ class StreamNet(AbstractFlow):
     """``ψ_θ = psi_scale · [MLP(ξ[, t/time_scale]) + ½ ξᵀQξ + bᵀξ]`` [m²/s], ``ξ = x / length_scale``.
 
     ``quadratic = (Q_xx, Q_xy, Q_yy)`` and ``linear = b`` are the far-field linear flow (None: the
-    paper's plain MLP).
+    paper's plain MLP). The scales are data-derived constants held as 0-d arrays behind
+    ``stop_gradient`` (never trained): arrays, not static fields, so that models of the same
+    architecture on different data sets share one compiled program.
     """
 
     mlp: eqx.nn.MLP | None  # None: sits out (the warm-up fits the linear flow alone)
-    length_scale: float = eqx.field(static=True)
-    psi_scale: float = eqx.field(static=True)
-    time_scale: float = eqx.field(static=True)
+    length_scale: Array  # [m]
+    psi_scale: Array  # [m²/s]
+    time_scale: Array  # [s]
     uses_time: bool = eqx.field(static=True)
     quadratic: Array | None = None
     linear: Array | None = None
@@ -159,41 +161,55 @@ class StreamNet(AbstractFlow):
         """The MLP part of ψ_θ [m²/s] (what the smoothness penalty acts on); 0 without the MLP."""
         if self.mlp is None:
             return jnp.zeros((), jnp.result_type(float))
-        inp = jnp.asarray(xy) / self.length_scale
+        inp = jnp.asarray(xy) / _const(self.length_scale)
         if self.uses_time:
-            inp = jnp.concatenate([inp, jnp.reshape(jnp.asarray(t, inp.dtype) / self.time_scale, (1,))])
-        return self.psi_scale * self.mlp(inp)[0]
+            tau = jnp.asarray(t, inp.dtype) / _const(self.time_scale)
+            inp = jnp.concatenate([inp, jnp.reshape(tau, (1,))])
+        return _const(self.psi_scale) * self.mlp(inp)[0]
 
     def stream(self, xy: Array, t: Array) -> Array:
         psi = self.net_stream(xy, t)
         if self.quadratic is not None and self.linear is not None:
-            xi = jnp.asarray(xy) / self.length_scale
+            xi = jnp.asarray(xy) / _const(self.length_scale)
             q = self.quadratic
             far = 0.5 * (q[0] * xi[0] ** 2 + 2.0 * q[1] * xi[0] * xi[1] + q[2] * xi[1] ** 2)
-            psi = psi + self.psi_scale * (far + jnp.dot(self.linear, xi))
+            psi = psi + _const(self.psi_scale) * (far + jnp.dot(self.linear, xi))
         return psi
 
 
 class CoefficientNet(AbstractCoefficients):
     """``g_φ(r, σ) → (m_ax, m_ay, c_q, c_l)`` through a capped positive map; ``r`` clipped to
-    ``r_range`` [m] when given."""
+    ``r_range`` [m] when given. The mask, input scales and ``r_range`` are constants, held
+    as arrays behind ``stop_gradient`` (see :class:`StreamNet`)."""
 
     mlp: eqx.nn.MLP
     caps: tuple[float, ...] = eqx.field(static=True)
     cap_map: str = eqx.field(static=True)
-    mask: tuple[float, ...] = eqx.field(static=True)
-    r_scale: float = eqx.field(static=True)
-    sigma_scale: float = eqx.field(static=True)
+    mask: Array  # (4,): 0 switches a coefficient off (the ablations)
+    r_scale: Array  # [m]
+    sigma_scale: Array  # [m/s]
     c_l_raw: Array | None = None
-    r_range: tuple[float, float] | None = eqx.field(static=True, default=None)
+    r_range: Array | None = None  # (2,) [m]: min and max radius of the training positions
 
     def __call__(self, r: Array, sigma: Array) -> Array:
         if self.r_range is not None:
-            r = jnp.clip(r, *self.r_range)
-        z = self.mlp(jnp.stack([r / self.r_scale, sigma / self.sigma_scale]))
+            lo, hi = _const(self.r_range)
+            r = jnp.clip(r, lo, hi)
+        z = self.mlp(jnp.stack([r / _const(self.r_scale), sigma / _const(self.sigma_scale)]))
         if self.c_l_raw is not None:  # constant linear drag: one learned raw value
             z = z.at[3].set(self.c_l_raw)
-        return cap(z, jnp.asarray(self.caps), self.cap_map) * jnp.asarray(self.mask)
+        return cap(z, jnp.asarray(self.caps), self.cap_map) * _const(self.mask)
+
+
+def _array(value: Any) -> Array:
+    """A float64 array, not weakly typed (an optimiser's update makes a weak scalar strong, and the
+    compiled step would be traced again)."""
+    return jnp.asarray(value, dtype=jnp.result_type(float))
+
+
+def _const(value: Array) -> Array:
+    """A data-derived constant of a model: an array leaf the optimisers never move (zero gradient)."""
+    return jax.lax.stop_gradient(value)
 
 
 def cap(z: Array, caps: Array, kind: str) -> Array:
@@ -319,9 +335,9 @@ def build_fhnn(
             mlp = eqx.tree_at(lambda m: m.layers[-1].weight, mlp, jnp.zeros_like(mlp.layers[-1].weight))
         flow = StreamNet(
             mlp=mlp,
-            length_scale=length_scale,
-            psi_scale=speed_scale * length_scale,
-            time_scale=time_scale,
+            length_scale=_array(float(length_scale)),
+            psi_scale=_array(float(speed_scale * length_scale)),
+            time_scale=_array(float(time_scale)),
             uses_time=time_dependent,
             quadratic=jnp.zeros(3) if config.far_field == "linear" else None,
             linear=jnp.zeros(2) if config.far_field == "linear" else None,
@@ -342,19 +358,21 @@ def build_fhnn(
         mlp=coef_mlp,
         caps=tuple(float(c) for c in caps),
         cap_map=config.cap_map,
-        mask=tuple(mask),
-        r_scale=length_scale,
-        sigma_scale=max(speed_scale, 1e-6),
+        mask=_array(mask),
+        r_scale=_array(float(length_scale)),
+        sigma_scale=_array(float(max(speed_scale, 1e-6))),
         c_l_raw=jnp.asarray(bias[3]) if config.linear_drag == "constant" else None,
-        r_range=tuple(r_range) if r_range is not None and config.r_extrapolation == "hold" else None,
+        r_range=_array(r_range) if r_range is not None and config.r_extrapolation == "hold" else None,
     )
+    # the body's constants as arrays too (EquationsOfMotion never differentiates them): one
+    # compiled program serves every body and data set of the same architecture
     eom = EquationsOfMotion(
         flow=flow,
         coefficients=coefficients,
-        mass=mass,
-        rho=rho,
-        area=area,
-        volume=volume,
+        mass=_array(float(mass)),
+        rho=_array(float(rho)),
+        area=_array(float(area)),
+        volume=_array(float(volume)),
         fluid_inertia=fluid_inertia,
     )
     return FHNN(eom=eom)

@@ -43,10 +43,10 @@ class EquationsOfMotion(eqx.Module):
 
     flow: AbstractFlow
     coefficients: AbstractCoefficients
-    mass: float
-    rho: float
-    area: float
-    volume: float = 0.0
+    mass: float | Array
+    rho: float | Array
+    area: float | Array
+    volume: float | Array = 0.0
     fluid_inertia: bool = eqx.field(static=True, default=False)
     eps: float = SIGMA_EPS
 
@@ -70,14 +70,17 @@ class EquationsOfMotion(eqx.Module):
     def __call__(self, state: Array, t: Array, force: Array) -> Array:
         """``ṡ`` for one state ``(4,)`` at time ``t`` [s] under ``F_ext = force`` [N], ``(2,)``."""
         pos, vel = state[:2], state[2:]
+        # known constants, never learned: no gradient flows into them even when a model holds
+        # them as arrays (see fhnn.models.fhnn.build_fhnn)
+        mass, rho, area, volume = jax.lax.stop_gradient((self.mass, self.rho, self.area, self.volume))
         u = self.flow.velocity(pos, t)
         v_rel = vel - u
         sigma = safe_norm(v_rel) + self.eps
         r = safe_norm(pos)
         coeff = self.coefficients(r, sigma)
         added_mass, c_q, c_l = coeff[:2], coeff[2], coeff[3]
-        total = force - (0.5 * self.rho * self.area * c_q * sigma + c_l) * v_rel
+        total = force - (0.5 * rho * area * c_q * sigma + c_l) * v_rel
         if self.fluid_inertia:
-            total = total + (self.rho * self.volume + added_mass) * self.flow.material_derivative(pos, t)
-        accel = total / (self.mass + added_mass)
+            total = total + (rho * volume + added_mass) * self.flow.material_derivative(pos, t)
+        accel = total / (mass + added_mass)
         return jnp.concatenate([vel, accel])

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import equinox as eqx
+import jax
 import numpy as np
 
 from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
@@ -42,7 +43,14 @@ from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
 RUN_FORMAT = "fhnn-run"
 #: Version of the run folder's layout; a run written by a newer fhnn (a higher version) is refused.
-RUN_FORMAT_VERSION = 1
+#: 2: FHNN's constants (input scales, radius range, body constants, ablation mask) are array leaves
+#: of the checkpoints (1: static, not stored; read by :data:`FORMAT_1_CONSTANTS`).
+RUN_FORMAT_VERSION = 2
+#: Fields a format-1 checkpoint does not hold: static in format 1, so the model's own (built from
+#: the stored build arguments) are kept; the body constants, plain floats in format 1, had no
+#: optimiser state.
+FORMAT_1_CONSTANTS = ("length_scale", "psi_scale", "time_scale", "r_scale", "sigma_scale", "r_range", "mask")
+FORMAT_1_NO_OPT_STATE = (*FORMAT_1_CONSTANTS, "mass", "rho", "area", "volume")
 
 
 @frozen_config
@@ -410,12 +418,13 @@ class Run:
         meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed") if k in info}
         run = cls(folder, config, info["build_arguments"], meta)
         skeleton = run.skeleton()
-        model = _load_leaves(folder / "model.eqx", skeleton)
-        best = _load_leaves(folder / "best.eqx", skeleton)
+        old = version == 1
+        model = _load_leaves(folder / "model.eqx", skeleton, FORMAT_1_CONSTANTS if old else ())
+        best = _load_leaves(folder / "best.eqx", skeleton, FORMAT_1_CONSTANTS if old else ())
         opt_state = None
         if MODELS[kind].fit is None:
             like = Trainer.optimizer_for(config.train).init(eqx.filter(skeleton, eqx.is_array))
-            opt_state = _load_leaves(folder / "opt_state.eqx", like)
+            opt_state = _load_leaves(folder / "opt_state.eqx", like, FORMAT_1_NO_OPT_STATE if old else ())
         run.state = TrainState(
             model=model,
             opt_state=opt_state,
@@ -429,19 +438,31 @@ class Run:
         return run
 
 
-def _load_leaves(path: Path, like: Any) -> Any:
-    """The arrays of ``path`` in the structure of ``like``; a missing, truncated or foreign file is
-    a :class:`DataFormatError` naming it."""
+def _load_leaves(path: Path, like: Any, absent: tuple[str, ...] = ()) -> Any:
+    """The arrays of ``path`` in the structure of ``like``, except leaves under a field named in
+    ``absent`` (not in the file: ``like``'s are kept); a missing, truncated or foreign file is a
+    :class:`DataFormatError` naming it."""
     if not path.is_file():
         raise DataFormatError(f"{path}: checkpoint files missing or incompatible (no such file)")
+
+    def spec(key_path: tuple[Any, ...], _: Any) -> Callable[[Any, Any], Any]:
+        names = {getattr(k, "name", None) for k in key_path}
+        return _keep if names & set(absent) else eqx.default_deserialise_filter_spec
+
     try:
-        return eqx.tree_deserialise_leaves(path, like)
+        return eqx.tree_deserialise_leaves(
+            path, like, filter_spec=jax.tree_util.tree_map_with_path(spec, like)
+        )
     except (OSError, ValueError, RuntimeError, EOFError) as exc:
         kind = "truncated or corrupt" if isinstance(exc, OSError | EOFError | ValueError) else "incompatible"
         raise DataFormatError(
             f"{path}: checkpoint files missing or incompatible ({kind}: it does not hold this run's "
             "model; retrain, or restore the file)"
         ) from None
+
+
+def _keep(_file: Any, like: Any) -> Any:
+    return like
 
 
 def train(
