@@ -395,6 +395,16 @@ def test_estimated_state_is_the_one_the_positions_came_from(fine, rng) -> None:
     assert 0.6 * NOISE < np.median(rms) < 1.2 * NOISE
     assert np.sqrt(np.mean((states[:, :2] - clean[rows, last, :2]) ** 2)) < 0.6 * NOISE
     assert np.sqrt(np.mean((states[:, 2:] - clean[rows, last, 2:]) ** 2)) < 5 * NOISE  # [m/s]
+    # padding after the last sample (a shorter track in a batch) changes nothing: x and y residuals
+    # weigh alike, on one scale taken from the real samples only
+    k = t.shape[1]
+    padded_t = np.concatenate([t, t[:, -1:] + 0.05 * np.arange(1, k + 1)], axis=1)
+    pad = lambda a: np.concatenate([a, np.zeros_like(a)], axis=1)  # noqa: E731
+    again, rms_again = estimate_states(
+        truth, padded_t, pad(noisy), mask=pad(mask).astype(bool), force=pad(force)
+    )
+    np.testing.assert_allclose(again, states, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(rms_again, rms, rtol=1e-9)
     with pytest.raises(ValueError, match="at least 3 observed positions"):
         estimate_states(truth, t[:, :2], clean[:, :2, :2])
 

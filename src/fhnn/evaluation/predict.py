@@ -58,7 +58,11 @@ def _fit(
 
     def one(s0: Array, tt: Array, ff: Array, p: Array, m: Array, fk: Array, k: Array) -> tuple[Array, Array]:
         f = lambda s, time: model(s, time, forcing(jnp.zeros((2, 3, 3)), time, tt, fk))  # noqa: E731
-        scale = jnp.maximum(jnp.std(p, axis=0), 1e-3)
+        # one scale for both coordinates, over the real samples only: the noise is isotropic, so x
+        # and y residuals weigh alike (only conditioning depends on it, not the minimiser)
+        n = jnp.sum(m)
+        centre = jnp.sum(p * m[:, None], axis=0) / n
+        scale = jnp.maximum(jnp.sqrt(jnp.sum((p - centre) ** 2 * m[:, None]) / (2 * n)), 1e-3)
 
         def path(s: Array) -> Array:
             return rk4_solve(f, s, ff)[::SUBSTEPS]
