@@ -336,6 +336,14 @@ def train(
     seed: Annotated[
         int | None, typer.Option(help="Seed of initialisation and batch order (train.seed) [default: 0]")
     ] = None,
+    n_seeds: Annotated[
+        int | None,
+        typer.Option(
+            "--seeds",
+            help="Train an ensemble of N runs with seeds --seed … --seed+N−1 into RUN/seed-S "
+            "(fhnn inspect and predict then give 90 % intervals over the members) [default: 1, one run]",
+        ),
+    ] = None,
     config_file: ConfigFileOption = None,
     set_: SetOption("model.width=32, train.lr=1e-3") = None,
     extend: Annotated[
@@ -352,8 +360,11 @@ def train(
     checkpoint; options that differ from the ones it was started with are refused (--extend
     allows more steps). Checkpoints are written at every validation and at least every minute;
     Ctrl-C stops the run, and the same command resumes it."""
-    from fhnn.training.run import Run, RunConfig
+    from fhnn.training.ensemble import is_ensemble, read_seeds, start_ensemble
+    from fhnn.training.run import RunConfig
 
+    if n_seeds is not None and n_seeds < 1:
+        raise ConfigError(f"--seeds must be >= 1, got {n_seeds}")
     settings = _settings(
         set_,
         config_file,
@@ -387,6 +398,49 @@ def train(
                 soft_wrap=True,
                 highlight=False,
             )
+    if n_seeds is None and is_ensemble(out):
+        n_seeds = len(read_seeds(out))
+        settings.setdefault("train.seed", read_seeds(out)[0])
+    if n_seeds == 1 and is_ensemble(out):
+        raise ConfigError(f"{out} holds an ensemble; resume it without --seeds, or train into a new folder")
+    if n_seeds is None or n_seeds == 1:
+        _train_run(out, settings, config, dataset, data, extend=extend, quiet=quiet, label="")
+        return
+    base = int(settings.get("train.seed", 0))
+    seeds = list(range(base, base + n_seeds))
+    for k, (seed_k, folder) in enumerate(zip(seeds, start_ensemble(out, seeds), strict=True)):
+        member = {**settings, "train.seed": seed_k}
+        label = f"seed {seed_k} ({k + 1}/{n_seeds}) "
+        _train_run(
+            folder,
+            member,
+            RunConfig().with_settings(member),
+            dataset,
+            data,
+            extend=extend,
+            quiet=quiet,
+            label=label,
+        )
+    if not quiet:
+        stdout.print(f"ensemble of {n_seeds} runs (seeds {seeds[0]}–{seeds[-1]}) in {out}", soft_wrap=True)
+
+
+def _train_run(
+    out: Path,
+    settings: dict[str, Any],
+    config: Any,
+    dataset: Any,
+    data: Path,
+    *,
+    extend: bool,
+    quiet: bool,
+    label: str,
+) -> None:
+    """Create or resume the run in ``out`` and train it, with a progress bar (``label`` before
+    its phase: an ensemble's member)."""
+    from fhnn.training.run import Run
+
+    kind = str(settings.get("kind", "fhnn"))
     if (out / "run.json").exists():
         run = Run.load(out, expect_model=kind if "kind" in settings else None)
         wanted = run.config.with_settings(settings)
@@ -418,7 +472,7 @@ def train(
         run = Run.create(out, dataset, config, data_path=data)
     total = run.train_config.steps + run.train_config.lbfgs_steps
     with Progress(
-        TextColumn("{task.fields[phase]:9s}"),
+        TextColumn(label + "{task.fields[phase]:9s}"),
         BarColumn(bar_width=20),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
@@ -569,7 +623,10 @@ def evaluate(
 @app.command()
 def predict(
     run_dir: Annotated[
-        Path, typer.Argument(help="Run folder written by `fhnn train` (a vector-field model).")
+        Path,
+        typer.Argument(
+            help="Run folder (or ensemble folder) written by `fhnn train` (a vector-field model)."
+        ),
     ],
     duration: Annotated[float, typer.Option("--duration", help="Forecast length in seconds.")],
     initial: Annotated[
@@ -611,11 +668,14 @@ def predict(
     ] = None,
 ) -> None:
     """Forecast with a trained model from a given state or from the end of observed tracks: columns
-    traj_id, t, x, y, vx, vy. A history's start state is the one the model explains best (a least
-    squares fit of its trajectory to the last observed positions), not a smoother's end point."""
+    traj_id, t, x, y, vx, vy; for an ensemble (fhnn train --seeds N) the members' median, then
+    x_lo, x_hi, y_lo, … (their 5th and 95th percentiles). A history's start state is the one the
+    model explains best (a least squares fit of its trajectory to the last observed positions), not
+    a smoother's end point."""
     from fhnn.data.table import check_table_name, read_forcing, read_table, write_table
-    from fhnn.evaluation.predict import FIT_WINDOW, predict_tracks
+    from fhnn.evaluation.predict import FIT_WINDOW, Forecast, predict_tracks
     from fhnn.models.base import AbstractVectorField
+    from fhnn.training.ensemble import INTERVAL, is_ensemble, member_folders
     from fhnn.training.run import Run
 
     if (initial is None) == (history is None):
@@ -633,26 +693,35 @@ def predict(
         check_table_name(output)
     tracks = read_table(history) if history is not None else None
     forces = read_forcing(forcing) if forcing is not None else None
-    run = Run.load(run_dir)
-    model = run.state.best_model
-    if not isinstance(model, AbstractVectorField):
-        raise ConfigError(f"predict needs a vector-field model; a {run.kind!r} model steps on its own grid")
+    folders = member_folders(run_dir) if is_ensemble(run_dir) else [run_dir]
+    models = []
+    for folder in folders:
+        run = Run.load(folder)
+        if not isinstance(run.state.best_model, AbstractVectorField):
+            raise ConfigError(
+                f"predict needs a vector-field model; a {run.kind!r} model steps on its own grid"
+            )
+        models.append(run.state.best_model)
     if dt is None:
         dt = (
             float(np.median(np.concatenate([np.diff(tr.t) for tr in tracks.trajectories])))
             if tracks
             else 0.05
         )
-    result = predict_tracks(
-        model,
-        duration=duration,
-        dt=dt,
-        initial=None if state is None else np.asarray(state),
-        t0=t0,
-        history=tracks,
-        forcing_table=forces,
-        fit_window=FIT_WINDOW if fit_window is None else fit_window,
-    )
+    forecasts = [
+        predict_tracks(
+            model,
+            duration=duration,
+            dt=dt,
+            initial=None if state is None else np.asarray(state),
+            t0=t0,
+            history=tracks,
+            forcing_table=forces,
+            fit_window=FIT_WINDOW if fit_window is None else fit_window,
+        )
+        for model in models
+    ]
+    result = forecasts[0] if len(forecasts) == 1 else Forecast.of_ensemble(forecasts, INTERVAL)
     if forces is None:
         err.print("note: no --forcing: the forecast assumes no external force", highlight=False)
     if tracks is not None:
@@ -732,9 +801,70 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
     stdout.print("written: " + ", ".join(str(f) for f in written))
 
 
+def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
+    """``fhnn inspect`` on an ensemble: each coefficient and identifiable ratio with the members'
+    median and 90 % interval (against the truth where the data were simulated), and the
+    ``coefficients.csv`` / ``flow.nc`` of the ensemble (with ``_lo`` / ``_hi``) in the folder."""
+    from fhnn.experiments.exports import ensemble_intervals, write_coefficients_csv, write_flow_netcdf
+    from fhnn.training.ensemble import member_folders
+    from fhnn.training.run import Run
+
+    folders = member_folders(folder)
+    first, dataset = _load_run(folders[0], data, fhnn_only=True)
+    models = [first.state.best_model] + [Run.load(f).state.best_model for f in folders[1:]]
+    truth = None if dataset.imported else dataset.equations()
+    rows = ensemble_intervals([m.eom for m in models], dataset, truth)
+    written = [
+        write_coefficients_csv([m.eom for m in models], dataset, folder / "coefficients.csv"),
+        write_flow_netcdf([m.flow for m in models], dataset, folder / "flow.nc"),
+    ]
+    forced = "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
+    # identifiability from the spread: without known forces inertia and drag scale together, so
+    # the members agree on the ratios c/(M + m_a) far better than on the masses themselves
+    mass_width = max(rows[n]["rel_width"] for n in ("m_ax", "m_ay"))
+    ratio_width = max(rows[n]["rel_width"] for n in rows if "/" in n)
+    if as_json:
+        out = {
+            "members": len(models),
+            "coefficients": rows,
+            "forced": forced,
+            "written": [str(f) for f in written],
+        }
+        typer.echo(json.dumps(out, indent=2))
+        return
+    table = Table(
+        title=f"ensemble of {len(models)} runs: median and 90 % interval over the members, "
+        "typical over the covered (r, σ)",
+        title_justify="left",
+    )
+    columns = ["quantity", "median", "90 % interval", "rel. width"]
+    if truth is not None:
+        columns += ["true", "truth inside", "max rel. error"]
+    for col in columns:
+        table.add_column(col, justify="right")
+    for name, r in rows.items():
+        cells = [name, _fmt(r["median"]), f"{_fmt(r['lo'])} – {_fmt(r['hi'])}", f"{r['rel_width']:.1%}"]
+        if truth is not None:
+            cells += [_fmt(r["true"]), f"{r['coverage']:.0%} of points", f"{r['max_rel']:.2%}"]
+        table.add_row(*cells)
+    stdout.print(table)
+    if not forced:
+        stdout.print(
+            "note: no known forcing in the data — the added masses and drag coefficients are NOT "
+            "determined by the data; only the ratios c/(M + m_a) are (the members' masses spread "
+            f"{mass_width:.1%}, their ratios {ratio_width:.1%}).",
+            soft_wrap=True,
+        )
+    stdout.print(
+        "the interval is the members' spread (initialisation and batch order), not the data's sampling noise",
+        soft_wrap=True,
+    )
+    stdout.print("written: " + ", ".join(str(f) for f in written))
+
+
 @app.command()
 def inspect(
-    run_dir: Annotated[Path, typer.Argument(help="Run folder written by `fhnn train`.")],
+    run_dir: Annotated[Path, typer.Argument(help="Run folder (or ensemble folder) written by `fhnn train`.")],
     data: Annotated[
         Path | None, typer.Argument(help="Data set [default: the one the run was trained on]")
     ] = None,
@@ -743,10 +873,16 @@ def inspect(
     """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN,
     with the learned coefficients over the covered (r, σ) as coefficients.csv and the learned flow
     on a grid as flow.nc (NetCDF-4). On imported data (no truth): the learned coefficients over
-    the region the data cover, and the learned flow."""
+    the region the data cover, and the learned flow. On an ensemble (fhnn train --seeds N): every
+    coefficient and identifiable ratio with the members' median and 90 % interval (and whether it
+    covers the truth), coefficients.csv with NAME_lo/NAME_hi columns and flow.nc with u_lo, u_hi, …"""
     from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
     from fhnn.experiments.figures import coefficient_figure, flow_figure
+    from fhnn.training.ensemble import is_ensemble
 
+    if is_ensemble(run_dir):
+        _inspect_ensemble(run_dir, data, as_json)
+        return
     run, dataset = _load_run(run_dir, data, fhnn_only=True)
     model = run.state.best_model
     if dataset.imported:
@@ -898,8 +1034,12 @@ def reproduce(
 def _load_run(run_dir: Path, data: Path | None, *, fhnn_only: bool = False) -> tuple[Any, Any]:
     """A trained run and the data set to score it on (default: the one it was trained on, found
     relative to the run folder and checked against its SHA-256)."""
+    from fhnn.training.ensemble import is_ensemble, member_folders
     from fhnn.training.run import Run
 
+    if is_ensemble(run_dir):
+        members = ", ".join(str(f) for f in member_folders(run_dir))
+        raise ConfigError(f"{run_dir} is an ensemble; give one of its runs ({members})")
     run = Run.load(run_dir)
     if fhnn_only and run.kind != "fhnn":
         raise ConfigError(f"inspect needs an fhnn run; a {run.kind!r} model has no flow or coefficients")

@@ -175,23 +175,48 @@ FIT_WINDOW = 1.0
 @dataclasses.dataclass(frozen=True)
 class Forecast:
     """Forecasts of named tracks: ``t`` ``(N, T)`` [s], ``states`` ``(N, T, 4)``, ``ok`` ``(N,)``,
-    the fitted history's RMS position residual ``fit_rms`` ``(N,)`` [m] (NaN without a history)."""
+    the fitted history's RMS position residual ``fit_rms`` ``(N,)`` [m] (NaN without a history);
+    for an ensemble's forecast ``states`` is the members' median and ``band`` the states at the
+    interval's two percentiles, ``(2, N, T, 4)``."""
 
     ids: list[str]
     t: np.ndarray
     states: np.ndarray
     ok: np.ndarray
     fit_rms: np.ndarray
+    band: np.ndarray | None = None
+
+    @classmethod
+    def of_ensemble(cls, members: list[Forecast], percentiles: tuple[float, float]) -> Forecast:
+        """The members' median forecast with the ``percentiles`` band; a track is ok where every
+        member's is (a diverged member makes the band meaningless)."""
+        states = np.stack([m.states for m in members])
+        return cls(
+            ids=members[0].ids,
+            t=members[0].t,
+            states=np.median(states, axis=0),
+            ok=np.all([m.ok for m in members], axis=0),
+            fit_rms=np.median([m.fit_rms for m in members], axis=0),
+            band=np.percentile(states, percentiles, axis=0),
+        )
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The forecasts as table columns ``traj_id, t, x, y, vx, vy`` (one row per output time)."""
+        """The forecasts as table columns ``traj_id, t, x, y, vx, vy`` (one row per output time),
+        followed by ``x_lo, x_hi, y_lo, …`` for an ensemble's band."""
         size = self.t.shape[1]
         out = {
             "traj_id": np.repeat(np.asarray(self.ids, dtype=object), size).astype(str),
             "t": self.t.ravel(),
         }
-        for j, name in enumerate(("x", "y", "vx", "vy")):
+        names = ("x", "y", "vx", "vy")
+        for j, name in enumerate(names):
             out[name] = self.states[..., j].ravel()
+        if self.band is not None:
+            for j, name in enumerate(names):
+                out[f"{name}_lo"], out[f"{name}_hi"] = (
+                    self.band[0, ..., j].ravel(),
+                    self.band[1, ..., j].ravel(),
+                )
         return out
 
 

@@ -11,8 +11,10 @@ as ``coefficients.csv`` and the learned flow on a grid as ``flow.nc``.
   ``(t, y, x)``; points farther than ``reach`` from every training position (where the data say
   nothing about the flow) are NaN.
 
-Both are written atomically. Ensemble intervals (``NAME_lo``, ``NAME_hi``) need an ensemble,
-which training does not make yet.
+For an ensemble (``fhnn train --seeds N``) every value is the members' median at that point,
+and ``NAME_lo``, ``NAME_hi`` columns (CSV) or ``u_lo``, ``u_hi``, … variables (NetCDF) hold the
+5th and 95th percentiles over the members (:data:`fhnn.training.ensemble.INTERVAL`); the grid is
+the first member's. Both files are written atomically.
 """
 
 from __future__ import annotations
@@ -28,38 +30,107 @@ from scipy.spatial import cKDTree
 
 from fhnn.data.dataset import Dataset
 from fhnn.data.table import write_table
-from fhnn.evaluation.recovery import coefficients_at, flow_box, visited_r_sigma, window_times
+from fhnn.evaluation.recovery import (
+    RATIO_NAMES,
+    coefficients_at,
+    drag_ratios,
+    flow_box,
+    visited_r_sigma,
+    window_times,
+)
 from fhnn.files import atomic_output
 from fhnn.physics.body import COEFFICIENT_NAMES
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.flows import AbstractFlow
+from fhnn.training.ensemble import interval
 
 
-def coefficient_grid(eom: EquationsOfMotion, dataset: Dataset, *, n: int = 40) -> dict[str, np.ndarray]:
-    """The learned coefficients on an ``n × n`` ``(r, σ)`` grid over the covered region (see the
-    module docstring), as columns ``r, sigma, m_ax, m_ay, c_q, c_l``."""
+def coefficient_points(eom: EquationsOfMotion, dataset: Dataset, *, n: int = 40) -> np.ndarray:
+    """The ``(r, σ)`` points ``(P, 2)`` [m, m/s] of an ``n × n`` grid over the region the training
+    data cover in ``eom``'s flow, kept within 5 % of each range from a visited pair."""
     visited = visited_r_sigma(eom, dataset)
     lo, hi = visited.min(axis=0), visited.max(axis=0)
     span = np.maximum(hi - lo, 1e-12)
     rr, ss = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
     grid = np.column_stack([rr.ravel(), ss.ravel()])
     dist, _ = cKDTree(visited / span).query(grid / span)
-    grid = grid[dist <= 0.05]
-    values = np.asarray(coefficients_at(eom.coefficients, jnp.asarray(grid)))
-    return {
-        "r": grid[:, 0],
-        "sigma": grid[:, 1],
-        **{k: values[:, i] for i, k in enumerate(COEFFICIENT_NAMES)},
-    }
+    return grid[dist <= 0.05]
 
 
-def write_coefficients_csv(eom: EquationsOfMotion, dataset: Dataset, path: str | os.PathLike[str]) -> Path:
+def coefficient_grid(
+    eoms: EquationsOfMotion | list[EquationsOfMotion], dataset: Dataset, *, n: int = 40
+) -> dict[str, np.ndarray]:
+    """The learned coefficients over :func:`coefficient_points` (of the first model) as columns
+    ``r, sigma, m_ax, m_ay, c_q, c_l``; for several models (an ensemble) their median, with
+    ``NAME_lo, NAME_hi`` after each ``NAME``."""
+    members = eoms if isinstance(eoms, list) else [eoms]
+    grid = coefficient_points(members[0], dataset, n=n)
+    values = member_coefficients(members, grid)
+    columns = {"r": grid[:, 0], "sigma": grid[:, 1]}
+    if len(members) == 1:
+        return {**columns, **{k: values[0, :, i] for i, k in enumerate(COEFFICIENT_NAMES)}}
+    median, lo, hi = interval(values)
+    for i, k in enumerate(COEFFICIENT_NAMES):
+        columns.update({k: median[:, i], f"{k}_lo": lo[:, i], f"{k}_hi": hi[:, i]})
+    return columns
+
+
+def member_coefficients(eoms: list[EquationsOfMotion], points: np.ndarray) -> np.ndarray:
+    """Each model's coefficients at ``points`` ``(P, 2)``: shape ``(members, P, 4)``."""
+    return np.stack([np.asarray(coefficients_at(e.coefficients, jnp.asarray(points))) for e in eoms])
+
+
+def ensemble_intervals(
+    eoms: list[EquationsOfMotion], dataset: Dataset, truth: EquationsOfMotion | None = None
+) -> dict[str, dict[str, float]]:
+    """Per coefficient and per identifiable ratio (:data:`~fhnn.evaluation.recovery.RATIO_NAMES`),
+    over :func:`coefficient_points`: the median over the points of the members' median
+    (``median``), of the interval's ends (``lo``, ``hi``) and of its relative width
+    ``(hi − lo) / |median|`` (``rel_width``). With ``truth`` also the true median (``true``),
+    the fraction of points whose true value lies inside the interval (``coverage``) and the mean
+    and max relative error of the members' median (``mean_rel``, ``max_rel``)."""
+    grid = coefficient_points(eoms[0], dataset)
+    mass = dataset.constants()["M"]
+    values = member_coefficients(eoms, grid)
+    ratios = np.stack([drag_ratios(v, mass) for v in values])
+    exact = None if truth is None else member_coefficients([truth], grid)[0]
+    out: dict[str, dict[str, float]] = {}
+    for names, vals, true in (
+        (COEFFICIENT_NAMES, values, exact),
+        (RATIO_NAMES, ratios, None if exact is None else drag_ratios(exact, mass)),
+    ):
+        median, lo, hi = interval(vals)
+        for i, name in enumerate(names):
+            m = median[:, i]
+            row = {
+                "median": float(np.median(m)),
+                "lo": float(np.median(lo[:, i])),
+                "hi": float(np.median(hi[:, i])),
+                "rel_width": float(np.median((hi[:, i] - lo[:, i]) / np.maximum(np.abs(m), 1e-300))),
+            }
+            if true is not None:
+                t = true[:, i]
+                rel = np.abs(m - t) / np.maximum(np.abs(t), 1e-300)
+                inside = (lo[:, i] <= t) & (t <= hi[:, i])
+                row.update(
+                    true=float(np.median(t)),
+                    coverage=float(np.mean(inside)),
+                    mean_rel=float(np.mean(rel)),
+                    max_rel=float(np.max(rel)),
+                )
+            out[name] = row
+    return out
+
+
+def write_coefficients_csv(
+    eoms: EquationsOfMotion | list[EquationsOfMotion], dataset: Dataset, path: str | os.PathLike[str]
+) -> Path:
     """Write :func:`coefficient_grid` to ``path`` (``.csv``)."""
-    return write_table(coefficient_grid(eom, dataset), path)
+    return write_table(coefficient_grid(eoms, dataset), path)
 
 
 def write_flow_netcdf(
-    flow: AbstractFlow,
+    flows: AbstractFlow | list[AbstractFlow],
     dataset: Dataset,
     path: str | os.PathLike[str],
     *,
@@ -67,14 +138,15 @@ def write_flow_netcdf(
     n_times: int = 16,
     reach: float = 0.25,
 ) -> Path:
-    """Write the learned ``flow`` on an ``n × n`` grid over the training positions (see the module
-    docstring) to ``path`` (``.nc``)."""
+    """Write the learned flow (of several models, an ensemble: the median and the interval) on an
+    ``n × n`` grid over the training positions (see the module docstring) to ``path`` (``.nc``)."""
     import xarray as xr
 
     x, y, near = flow_box(dataset, n=n, reach=reach)
     gx, gy = np.meshgrid(x, y)  # (y, x)
     points = np.column_stack([gx.ravel(), gy.ravel()])
-    steady = not flow.time_dependent
+    members = flows if isinstance(flows, list) else [flows]
+    steady = not members[0].time_dependent
     times = np.zeros(1) if steady else window_times(dataset, n_times)
 
     @eqx.filter_jit
@@ -85,17 +157,36 @@ def write_flow_netcdf(
         )
         return jax.vmap(at_time)(ts)
 
-    vel, psi = (np.array(a) for a in fields(flow, jnp.asarray(points), jnp.asarray(times)))
-    vel = vel.reshape(times.size, n, n, 2)
-    psi = psi.reshape(times.size, n, n)
-    for a in (vel[..., 0], vel[..., 1], psi):
-        a[:, ~near] = np.nan
+    per_member = []
+    for flow in members:
+        vel, psi = (np.array(a) for a in fields(flow, jnp.asarray(points), jnp.asarray(times)))
+        per_member.append(np.concatenate([vel, psi[..., None]], axis=-1).reshape(times.size, n, n, 3))
+    stacked = np.stack(per_member)  # (members, t, y, x, 3): u, v, psi
+    stacked[:, :, ~near] = np.nan
     dims = ("t", "y", "x")
-    data = {
-        "u": (dims, vel[..., 0], {"units": "m s-1", "long_name": "learned flow velocity, x component"}),
-        "v": (dims, vel[..., 1], {"units": "m s-1", "long_name": "learned flow velocity, y component"}),
-        "psi": (dims, psi, {"units": "m2 s-1", "long_name": "learned stream function"}),
+    described = {
+        "u": ("m s-1", "learned flow velocity, x component"),
+        "v": ("m s-1", "learned flow velocity, y component"),
+        "psi": ("m2 s-1", "learned stream function"),
     }
+    data = {}
+    if len(members) == 1:
+        for i, (name, (units, long_name)) in enumerate(described.items()):
+            data[name] = (dims, stacked[0, ..., i], {"units": units, "long_name": long_name})
+    else:
+        median, lo, hi = interval(stacked)
+        for i, (name, (units, long_name)) in enumerate(described.items()):
+            data[name] = (
+                dims,
+                median[..., i],
+                {"units": units, "long_name": f"{long_name}, ensemble median"},
+            )
+            for end, values, pct in (("lo", lo, 5), ("hi", hi, 95)):
+                data[f"{name}_{end}"] = (
+                    dims,
+                    values[..., i],
+                    {"units": units, "long_name": f"{long_name}, {pct}th percentile of the ensemble"},
+                )
     ds = xr.Dataset(
         data,
         coords={
@@ -106,6 +197,7 @@ def write_flow_netcdf(
         attrs={
             "title": "flow learned by fhnn",
             "note": f"NaN farther than {reach:g} m from every training position",
+            "members": len(members),
         },
     )
     if steady:
@@ -116,4 +208,11 @@ def write_flow_netcdf(
     return path
 
 
-__all__ = ["coefficient_grid", "write_coefficients_csv", "write_flow_netcdf"]
+__all__ = [
+    "coefficient_grid",
+    "coefficient_points",
+    "ensemble_intervals",
+    "member_coefficients",
+    "write_coefficients_csv",
+    "write_flow_netcdf",
+]
