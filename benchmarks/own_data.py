@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import subprocess
 import sys
 import time
@@ -110,7 +111,14 @@ def rollout_errors(run: Path, imported: Dataset, clean: np.ndarray, horizons: tu
 
 
 def forecast_errors(
-    run: Path, table: dict, fine: Dataset, ids: list[str], folder: Path, horizons: tuple[float, ...]
+    run: Path,
+    table: dict,
+    fine: Dataset,
+    ids: list[str],
+    folder: Path,
+    horizons: tuple[float, ...],
+    *,
+    read: bool = True,
 ) -> dict:
     """``fhnn predict`` as a forecaster uses it, on the held-out trajectories ``ids``: the first
     second of each one's noisy, gappy observations as ``--history`` (its start state fitted
@@ -144,6 +152,8 @@ def forecast_errors(
         str(pred_path),
     )
     seconds = time.perf_counter() - start
+    if not read:  # the caller reads forecast.csv itself
+        return {"seconds": seconds}
     clean = np.concatenate([fine[name].states_clean for name in ("train", "val", "test")])
     step = fine.train.t[1] - fine.train.t[0]
     errors: dict = {h: [] for h in horizons}
@@ -206,6 +216,75 @@ def import_speed(folder: Path) -> dict:
     return out
 
 
+def ensemble_scores(
+    n: int,
+    run: Path,
+    data: Path,
+    out: Path,
+    tag: str,
+    sets: list[str],
+    scored: Dataset,
+    fine: Dataset,
+    table: dict,
+    record: dict,
+) -> dict:
+    """``fhnn train --seeds n`` on the same data and settings (the finished single run, seed 0,
+    moved in as the first member: training is deterministic, so it is the member the command would
+    train), then each coefficient's and ratio's 90 % interval against the truth
+    (:func:`fhnn.experiments.exports.ensemble_intervals`) and ``fhnn predict``'s band on the held-out
+    tracks: the share of forecast positions whose truth lies inside the band at each time."""
+    import shutil
+
+    import pyarrow.csv as pacsv
+
+    from fhnn.experiments.exports import ensemble_intervals
+    from fhnn.training.ensemble import member_folder, member_folders
+
+    ens = out / f"ens{n}_{run.name}"
+    first = member_folder(ens, 0)
+    if not first.exists() and (run / "run.json").exists() and Run.load(run).finished:
+        ens.mkdir(exist_ok=True)
+        shutil.copytree(run, first)
+        info = json.loads((first / "run.json").read_text())
+        info["data"] = os.path.relpath(data.resolve(), first.resolve())
+        (first / "run.json").write_text(json.dumps(info, indent=1))
+    start = time.perf_counter()
+    run_cli("train", str(data), "-o", str(ens), "--seeds", str(n), "-q", *sets)
+    seconds = time.perf_counter() - start
+    models = [Run.load(f).state.best_model for f in member_folders(ens)]
+    rows = ensemble_intervals([m.eom for m in models], scored, scored.equations())
+    # the forecast band from the ensemble, on the held-out tracks (history, forcing as for the run)
+    folder = out / f"ens{n}_forecast"
+    folder.mkdir(exist_ok=True)
+    forecast_errors(ens, table, fine, list(record["traj_ids"]["test"]), folder, (1.0, 5.0), read=False)
+    band = pacsv.read_csv(folder / "forecast.csv").to_pydict()
+    clean = np.concatenate([fine[name].states_clean for name in ("train", "val", "test")])
+    step = fine.train.t[1] - fine.train.t[0]
+    ids = np.asarray(band["traj_id"]).astype(int)
+    t = np.asarray(band["t"])
+    truth = clean[ids, np.rint(t / step).astype(int), :2]
+    inside = np.ones(len(t), bool)
+    for j, c in enumerate(("x", "y")):
+        inside &= (np.asarray(band[f"{c}_lo"]) <= truth[:, j]) & (truth[:, j] <= np.asarray(band[f"{c}_hi"]))
+    width = np.hypot(
+        np.asarray(band["x_hi"]) - np.asarray(band["x_lo"]),
+        np.asarray(band["y_hi"]) - np.asarray(band["y_lo"]),
+    )
+    start_t = {i: t[ids == i].min() for i in np.unique(ids)}
+    rel = t - np.asarray([start_t[i] for i in ids])
+    at = {h: np.isclose(rel, h) for h in (1.0, 5.0)}
+    return {
+        "members": n,
+        "train_seconds": seconds,
+        "intervals": rows,
+        "forecast_band": {
+            "truth_inside_share": float(np.mean(inside[rel > 0])),
+            "truth_inside_share_at": {f"{h:g}": float(np.mean(inside[m])) for h, m in at.items()},
+            "median_band_diagonal_at": {f"{h:g}": float(np.median(width[m])) for h, m in at.items()},
+        },
+    }
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("benchmarks/_own_data"))
@@ -218,6 +297,13 @@ def main() -> None:
         help="score a finished run of the same settings instead of training",
     )
     p.add_argument("--smoother", default="spline", help="fhnn import --smoother")
+    p.add_argument(
+        "--seeds",
+        type=int,
+        default=1,
+        help="also train an ensemble of this many seeds (fhnn train --seeds; the single run is its "
+        "seed-0 member) and score its 90 %% intervals and forecast band",
+    )
     p.add_argument(
         "--no-forcing",
         action="store_true",
@@ -309,6 +395,10 @@ def main() -> None:
         "test_rollouts": errors,
         "test_forecasts": forecasts,
     }
+    if args.seeds > 1:
+        result["ensemble"] = ensemble_scores(
+            args.seeds, run, data, out, tag, sets, scored, fine, table, record
+        )
     if not args.skip_speed:
         result["import_speed"] = import_speed(out)
     text = json.dumps(result, indent=2)
@@ -340,6 +430,21 @@ def main() -> None:
         f"(target 5e-3), Liu-Weisberg skill {forecasts['liu_weisberg_skill']:.3f} "
         f"({forecasts['trajectories']} trajectories)"
     )
+    if "ensemble" in result:
+        e = result["ensemble"]
+        print(f"ensemble of {e['members']} (new members trained in {e['train_seconds']:.0f} s):")
+        for name, r in e["intervals"].items():
+            print(
+                f"  {name:14s} median {r['median']:.4g}  90 % interval {r['lo']:.4g} – {r['hi']:.4g} "
+                f"(width {r['rel_width']:.1%}, target ≤ 10 %)  true {r['true']:.4g}  truth inside at "
+                f"{r['coverage']:.0%} of points (target ≥ 90 %)  median error {r['mean_rel']:.2%}"
+            )
+        fb = e["forecast_band"]
+        print(
+            f"  forecast band holds the truth at {fb['truth_inside_share']:.0%} of forecast positions "
+            f"(1 s: {fb['truth_inside_share_at']['1']:.0%}, 5 s: {fb['truth_inside_share_at']['5']:.0%}); "
+            f"median band diagonal at 5 s {fb['median_band_diagonal_at']['5']:.2e} m"
+        )
     if "import_speed" in result:
         s = result["import_speed"]
         print(
