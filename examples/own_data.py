@@ -85,7 +85,8 @@ def main() -> None:
 
     # 4. what was learned, with intervals; coefficients.csv and flow.nc for other tools
     fhnn("inspect", str(out / "ens"))
-    fhnn("inspect", str(out / "ens" / "seed-0"))  # one member's figures: flow.png, coefficients.png
+    if not args.fast:  # one member's figures for the README: flow.png, coefficients.png
+        fhnn("inspect", str(out / "ens" / "seed-0"))
 
     # 5. forecasts of the held-out tracks from their first second, with the known thrust
     test_ids = read_dataset(out / "track.h5").extra["import"]["traj_ids"]["test"]
