@@ -39,7 +39,7 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
-#: The longest tests (one to five minutes each on 2 cores; none shares a module fixture), run
+#: The longest tests (one to five minutes each on 2 cores), run
 #: first, so that the two xdist workers finish together rather than one waiting on a long test
 #: that started last.
 LONGEST_FIRST = (
@@ -47,6 +47,9 @@ LONGEST_FIRST = (
     "test_faults.py::test_reproduction_killed_three_times",
     "test_reproduce.py::test_ray_cluster_gives_the_numbers_of_the_local_executor",
     "test_baselines.py::test_dissipative_hnn_fits",
+    "test_faults.py::test_training_killed_in_every_phase",
+    "test_faults.py::test_simulate_killed",
+    "test_examples.py::test_own_data_example",
 )
 
 

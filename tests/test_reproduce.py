@@ -357,11 +357,17 @@ def _render(html: Path, tmp: Path) -> str:
 
 
 def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None:
-    """The README's main job. (Kills and resumes of a reproduction: tests/test_faults.py.)"""
+    """The README's main job, with its jobs in one process (``--workers 1``: in the suite the other
+    test worker already keeps the second core busy, and one process compiles each shared program
+    once; two worker processes: tests/test_faults.py and the Ray test). (Kills and resumes of a
+    reproduction: tests/test_faults.py.)"""
     out = tmp_path / "report"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     run = subprocess.run(
-        _fhnn("reproduce", "--quick", "-o", str(out), "-q"), env=env, capture_output=True, text=True
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q", "--workers", "1"),
+        env=env,
+        capture_output=True,
+        text=True,
     )
     assert run.returncode == 0, run.stderr
     n_jobs = len(build_grid(ReproduceConfig.quick())[1])
