@@ -15,6 +15,7 @@ import pytest
 
 import fhnn.training.trainer as trainer_module
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.models.baselines import MLPConfig
 from fhnn.models.fhnn import FHNNConfig
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import get_scenario
@@ -70,6 +71,25 @@ def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, traces):
     assert first > 0
     assert train(7, 4) == first  # nothing traced again
     assert TrainConfig(seed=1, val_every=3).only(ADAM_FIELDS) == TrainConfig().only(ADAM_FIELDS)
+
+
+def test_the_quasi_newton_step_compiles_once_per_phase(data, traces):
+    """optax's L-BFGS starts its line-search info as weakly typed scalars and returns them strong:
+    the trainer strengthens the initial state, so a 3-iteration polish traces the loss exactly as
+    often as a 1-iteration one (before the fix the second iteration compiled the step again)."""
+
+    def polish_traces(width, iterations):
+        config = TrainConfig(steps=0, val_every=1, lbfgs_steps=iterations, lbfgs_pairs=64)
+        tr = Trainer(config, data.train, data.val)
+        kind = MODELS["node"]  # the cheapest model to compile: the issue is the optimiser's state
+        state = tr.init(kind.make(MLPConfig(width=width, depth=1), kind.arguments(data), 0))
+        before = len(traces)
+        tr.polish(state)
+        return len(traces) - before
+
+    once = polish_traces(5, 1)
+    assert once > 0
+    assert polish_traces(6, 3) == once
 
 
 def test_other_data_bodies_and_ablations_share_the_programs_and_never_move_the_constants(data, traces):

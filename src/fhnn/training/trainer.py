@@ -289,7 +289,7 @@ class Trainer:
         scales = self.scales
 
         qn_cfg = cfg.only(QUASI_NEWTON_FIELDS)
-        opt_state = optax.lbfgs(memory_size=cfg.lbfgs_memory).init(params)
+        opt_state = strong_types(optax.lbfgs(memory_size=cfg.lbfgs_memory).init(params))
         every = max(1, min(cfg.val_every, iterations // 5 or 1))
         for k in range(iterations):
             params, opt_state, value = quasi_newton_step(params, opt_state, static, batch, scales, qn_cfg)
@@ -463,6 +463,14 @@ def adam_step(
         lambda n, o: jnp.where(finite, n, o) if eqx.is_array(n) else n, new_state, opt_state
     )
     return model, opt_state, {**terms, "skipped": 1.0 - finite.astype(float)}
+
+
+def strong_types(tree: Any) -> Any:
+    """``tree`` with every weakly typed array leaf made strong (same dtype). optax's L-BFGS
+    initialises its line-search info as weak scalars and returns them strong after one update, so
+    without this the quasi-Newton step compiles twice per phase (measured: 7.8 s + 9.1 s for a
+    width-32 model)."""
+    return jax.tree.map(lambda x: jnp.asarray(x, dtype=x.dtype) if eqx.is_array(x) else x, tree)
 
 
 @eqx.filter_jit
