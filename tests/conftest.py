@@ -1,8 +1,8 @@
 """Shared fixtures. Importing fhnn switches JAX to float64 for the whole test session.
 
-Each test process keeps a persistent JAX compilation cache in a private temporary folder (removed
-at exit): the many trainers the tests build compile the same programs again (a resumed run, the
-straight run it is compared with), and a cache hit gives the same executable, so results are
+The test session keeps a persistent JAX compilation cache in a temporary folder (removed at
+exit; shared by the xdist workers): the many trainers the tests build compile the same programs
+again (a resumed run, the straight run it is compared with), and a cache hit gives the same executable, so results are
 unchanged and the suite spends less time in XLA. Commands started by the tests (in-process or as
 subprocesses) use the same folder through ``$FHNN_JAX_CACHE``.
 """
@@ -24,8 +24,17 @@ from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
 from fhnn.runtime import CACHE_ENV, use_compilation_cache
 
-_CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
-atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
+#: Under pytest-xdist the controller makes the folder and its workers inherit it, so a program one
+#: worker compiled the other loads (both compile the same small FHNN programs); the controller
+#: removes it at exit. Without xdist, or if the controller never read this file, each process has
+#: its own.
+_SHARED = "FHNN_TEST_JAX_CACHE"
+if os.environ.get("PYTEST_XDIST_WORKER") and os.path.isdir(os.environ.get(_SHARED, "")):
+    _CACHE = os.environ[_SHARED]
+else:
+    _CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
+    atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
+    os.environ[_SHARED] = _CACHE
 use_compilation_cache(_CACHE)
 os.environ[CACHE_ENV] = _CACHE
 
