@@ -54,8 +54,8 @@ PLANS: dict[str, TrainingPlan] = {
         TrainingPlan(
             "warmup-polish",
             "FHNN width 32; L-BFGS warm-up of the linear flow and coefficients (400), then L-BFGS on "
-            "everything (400); solid_body_vortex: RMSE(pos) 3.0e-6 / 1.0e-5 / 2.6e-3 m at 1 / 5 / 60 s "
-            "in ~90 s",
+            "everything (400); solid_body_vortex: RMSE(pos) 6.7e-6 / 1.9e-5 / 3.4e-3 m at 1 / 5 / 60 s "
+            "in ~100 s",
             TrainConfig(steps=0, warmup_steps=400, lbfgs_steps=400, lbfgs_pairs=8000),
             # chosen on the validation loss: width 32 reached 1.34e-9 in 90 s against 7.8e-9 in 158 s
             # at width 64, and on a second data seed 1.56e-9 in 87 s against 3.1e-9 in 154 s
@@ -64,7 +64,7 @@ PLANS: dict[str, TrainingPlan] = {
         TrainingPlan(
             "adam-polish",
             "12,000 Adam steps, then L-BFGS (700) on 8,000 pairs; steady_vortex (actuated): "
-            "RMSE(pos) 5.2e-5 m at 5 s, masses and c_l within 0.6 %, in ~290 s",
+            "RMSE(pos) 5.1e-5 m at 5 s, masses within 0.55 % and c_l within 0.19 %, in ~340 s",
             TrainConfig(steps=12000, lbfgs_steps=700, lbfgs_pairs=8000),
         ),
     )
