@@ -2,8 +2,8 @@
 
 The test session keeps a persistent JAX compilation cache in a temporary folder (removed at
 exit; shared by the xdist workers): the many trainers the tests build compile the same programs
-again (a resumed run, the straight run it is compared with), and a cache hit gives the same executable, so results are
-unchanged and the suite spends less time in XLA. Commands started by the tests (in-process or as
+again (a resumed run, the straight run it is compared with), and a cache hit gives the same
+executable, so results are unchanged and the suite spends less time in XLA. Commands started by the tests (in-process or as
 subprocesses) use the same folder through ``$FHNN_JAX_CACHE``.
 """
 
@@ -48,9 +48,8 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
-#: The longest tests (one to five minutes each on 2 cores), run
-#: first, so that the two xdist workers finish together rather than one waiting on a long test
-#: that started last.
+#: The longest tests (one to five minutes each on 2 cores), run first, so that the two xdist
+#: workers finish together rather than one waiting on a long test that started last.
 LONGEST_FIRST = (
     "test_reproduce.py::test_quick_reproduction_runs_every_table_and_renders",
     "test_faults.py::test_reproduction_killed_three_times",
