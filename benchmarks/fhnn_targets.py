@@ -6,22 +6,27 @@
 2. ``steady_vortex`` with actuation: RMSE(pos) at 5 s — target 1e-4 m; learned m_ax, m_ay, c_l
    within 2 %, c_q(σ) within 2 % over the σ range covered; flow within 1 % relative L2.
 
-Each training run has a wall-clock budget of 10 minutes on a 2-core CPU. The training plans are the
-package's named plans (``fhnn.training.plans.PLANS``, ``fhnn train --plan NAME``): on
-``solid_body_vortex`` ("warmup-polish", FHNN width 32) a quasi-Newton warm-up of the linear flow and
-coefficient net followed by a quasi-Newton polish of everything (Adam only adds noise there:
-measured, 4,000 Adam steps after the warm-up never got back below the warm-up's validation loss); on
-``steady_vortex`` ("adam-polish"; a Lamb–Oseen vortex, which the stream MLP must learn) Adam then a
-polish — the drag split (``c_l`` against ``c_q(σ)``) is fixed only by the data at small σ, where
-``½ρA c_q σ`` is a small correction to ``c_l``, so it is the last thing the fit settles: measured,
-Adam 15,000 + polish 400 left ``c_l`` 7.9 % off, Adam 12,000 + polish 700 (same time) 0.26 %. The σ
-bands printed at the end show where ``c_q`` is and is not pinned by the data.
+Each training run has a wall-clock budget of 10 minutes on a 2-core CPU. Both data sets are
+trained as ``fhnn train DATA`` trains them with no options: the default plan
+(``fhnn.training.plans.DEFAULT_PLAN``, "auto") and what the data call for
+(``fhnn.training.plans.data_settings``). ``--plan NAME`` trains with a named plan instead. The
+default plan's warm-up decides the route: on ``solid_body_vortex`` the quasi-Newton warm-up of the
+linear flow and coefficient net already explains the data (validation loss ~1e-8), so Adam is
+skipped and a quasi-Newton polish of everything follows (Adam only adds noise there: measured,
+4,000 Adam steps after the warm-up never got back below the warm-up's validation loss); on
+``steady_vortex`` (a Lamb–Oseen vortex, which the stream MLP must learn) the warm-up is discarded
+and Adam then a polish run from the initial model — the drag split (``c_l`` against ``c_q(σ)``) is
+fixed only by the data at small σ, where ``½ρA c_q σ`` is a small correction to ``c_l``, so it is
+the last thing the fit settles: measured, Adam 15,000 + polish 400 left ``c_l`` 7.9 % off, Adam
+12,000 + polish 700 (same time) 0.26 %. The σ bands printed at the end show where ``c_q`` is and
+is not pinned by the data.
 
 Usage::
 
-    python benchmarks/fhnn_targets.py [--only solid|steady] [--train JSON] [--model JSON] [--out DIR]
+    python benchmarks/fhnn_targets.py [--only solid|steady] [--plan NAME] [--train JSON] [--model JSON]
+        [--out DIR]
 
-``--train`` overrides fields of both plans, e.g. ``--train '{"steps": 20000}'``.
+``--train`` and ``--model`` override fields of the plan, e.g. ``--train '{"steps": 20000}'``.
 """
 
 from __future__ import annotations
@@ -37,21 +42,17 @@ import fhnn
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.runtime import default_cache_dir, use_compilation_cache
-from fhnn.training.plans import PLANS
+from fhnn.training.plans import DEFAULT_PLAN, data_settings, default_settings, get_plan
 from fhnn.training.run import Run, RunConfig
 
-#: The plan each scenario is trained with.
-SCENARIO_PLANS = {"solid_body_vortex": "warmup-polish", "steady_vortex": "adam-polish"}
 
-
-def train(name: str, folder: Path, options: dict):
+def train(name: str, folder: Path, options: dict, plan: str | None):
     ds, path = dataset(name, folder)
-    plan = PLANS[SCENARIO_PLANS[name]]
     given = {f"{part}.{k}": v for part in ("model", "train") for k, v in options.get(part, {}).items()}
-    config = RunConfig().with_settings({**plan.settings("fhnn"), **given})
-    print(
-        f"{name}: training plan {plan.name!r} {config.train.to_dict()} width {config.model.width}", flush=True
-    )
+    start = get_plan(plan).settings("fhnn") if plan else default_settings(ds)
+    config = RunConfig().with_settings({**start, **data_settings(ds), **given})
+    plan = plan or DEFAULT_PLAN
+    print(f"{name}: training plan {plan!r} {config.train.to_dict()} width {config.model.width}", flush=True)
     run = Run.create(folder / f"run_{name}", ds, config, data_path=path)
     t0 = time.perf_counter()
     run.train(
@@ -70,7 +71,8 @@ def main() -> None:
     p.add_argument("--only", choices=["solid", "steady"], default=None)
     p.add_argument("--out", type=Path, default=Path("benchmarks/_fhnn_targets"))
     p.add_argument("--model", default="{}", help="JSON of FHNNConfig options")
-    p.add_argument("--train", default="{}", help="JSON of TrainConfig options overriding the plans")
+    p.add_argument("--train", default="{}", help="JSON of TrainConfig options overriding the plan")
+    p.add_argument("--plan", default=None, help="a named plan (default: what fhnn train uses)")
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     cache = default_cache_dir()  # as every fhnn command: a second run loads its programs
@@ -81,7 +83,7 @@ def main() -> None:
     print(f"fhnn {fhnn.__version__}; options {options}")
     report = {}
     if args.only in (None, "solid"):
-        ds, run, secs = train("solid_body_vortex", args.out, options)
+        ds, run, secs = train("solid_body_vortex", args.out, options, args.plan)
         res = evaluate(run.state.best_model, ds, [1, 5, 60])["horizons"]
         print(f"solid_body_vortex: trained in {secs:.0f} s (budget 600 s)")
         for h, target, paper in (("1", 1e-5, 1.07e-4), ("5", 6e-5, 6.09e-4), ("60", 0.35, 3.51)):
@@ -93,7 +95,7 @@ def main() -> None:
             )
         report["solid_body_vortex"] = {"seconds": secs, "metrics": res}
     if args.only in (None, "steady"):
-        ds, run, secs = train("steady_vortex", args.out, options)
+        ds, run, secs = train("steady_vortex", args.out, options, args.plan)
         res = evaluate(run.state.best_model, ds, [1, 5, 60])["horizons"]
         coef = coefficient_recovery(run.state.best_model.coefficients, ds)
         flow = flow_recovery(run.state.best_model.flow, ds)

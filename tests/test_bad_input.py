@@ -29,7 +29,21 @@ def ws(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
     for name, model in (("run", "fhnn"), ("sindy", "sindy")):
         with pytest.raises(SystemExit) as info:
-            main(["train", str(data), "-o", str(ws / name), "--model", model, "--steps", "4", "-q"])
+            main(
+                [
+                    "train",
+                    str(data),
+                    "-o",
+                    str(ws / name),
+                    "--model",
+                    model,
+                    "--plan",
+                    "adam",
+                    "--steps",
+                    "4",
+                    "-q",
+                ]
+            )
         assert info.value.code == 0
     raw = data.read_bytes()
     (ws / "cut.h5").write_bytes(raw[: len(raw) // 3])

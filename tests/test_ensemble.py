@@ -18,7 +18,7 @@ from fhnn.training.run import Run
 
 from .conftest import small_dataset
 
-TRAIN = ["--steps", "6", "--set", "model.width=8", "--set", "train.val_every=3", "-q"]
+TRAIN = ["--plan", "adam", "--steps", "6", "--set", "model.width=8", "--set", "train.val_every=3", "-q"]
 
 
 def run(argv, capsys):

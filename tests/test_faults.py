@@ -175,7 +175,18 @@ def test_a_guard_stops_training_keeps_the_best_model_and_says_so(
         "validate",
         lambda self, model: {"deriv": 0.0, "step": 0.0, "total": next(vals)},
     )
-    args = ["train", str(data), "-o", str(tmp_path / "run"), "--steps", "1000", "--set", "train.val_every=10"]
+    args = [
+        "train",
+        str(data),
+        "-o",
+        str(tmp_path / "run"),
+        "--plan",
+        "adam",
+        "--steps",
+        "1000",
+        "--set",
+        "train.val_every=10",
+    ]
     with pytest.raises(SystemExit) as info:
         main([*args, "--set", "model.width=8", "-q"])
     assert info.value.code == 0
@@ -200,7 +211,7 @@ def test_a_guard_stops_training_keeps_the_best_model_and_says_so(
 # --- kills with real processes ----------------------------------------------------------------------
 
 #: A small plan with all three phases: warm-up, Adam, polish.
-TRAIN = ["--steps", "400", "--set", "model.width=8", "--set", "train.val_every=200", "-q"]
+TRAIN = ["--plan", "adam", "--steps", "400", "--set", "model.width=8", "--set", "train.val_every=200", "-q"]
 TRAIN += ["--set", "train.warmup_steps=8", "--set", "train.lbfgs_steps=8", "--set", "train.lbfgs_pairs=400"]
 
 

@@ -284,6 +284,8 @@ def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
             str(path),
             "-o",
             str(tmp_path / "run"),
+            "--plan",
+            "adam",
             "--steps",
             "20",
             "--set",

@@ -37,7 +37,21 @@ def data_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def trained(data_file: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("runs") / "run"
     with pytest.raises(SystemExit) as info:
-        main(["train", str(data_file), "-o", str(out), "--steps", "6", "--set", "model.width=8", "-q"])
+        main(
+            [
+                "train",
+                str(data_file),
+                "-o",
+                str(out),
+                "--plan",
+                "adam",
+                "--steps",
+                "6",
+                "--set",
+                "model.width=8",
+                "-q",
+            ]
+        )
     assert info.value.code == 0
     return out
 

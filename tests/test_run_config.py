@@ -12,9 +12,9 @@ import pytest
 
 from fhnn.cli.app import main
 from fhnn.config import read_settings_file
-from fhnn.data.dataset import write_dataset
+from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.errors import ConfigError
-from fhnn.training.plans import PLANS
+from fhnn.training.plans import AUTO_WARMUP_ACCEPT, DEFAULT_PLAN, PLANS, default_settings
 from fhnn.training.run import RunConfig
 
 from .conftest import small_dataset
@@ -47,7 +47,10 @@ def data_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
         (["--model", "hnn", "--set", "kind=fhnn"], "--model hnn and the setting kind=fhnn disagree"),
         (["--model", "hnnn"], "unknown model 'hnnn' (did you mean 'hnn'?)"),
         (["--model", "hnn", "--ablation", "relu"], "--ablation applies to fhnn only, not 'hnn'"),
-        (["--plan", "fastest"], "unknown training plan 'fastest'; available: adam, warmup-polish"),
+        (
+            ["--plan", "fastest"],
+            "unknown training plan 'fastest'; available: auto, adam, warmup-polish, adam-polish",
+        ),
         (
             ["--config", "/nonexistent/settings.toml"],
             "settings file '/nonexistent/settings.toml' does not exist",
@@ -99,6 +102,32 @@ def test_plans_are_typed_training_configurations() -> None:
         PLANS["adam"].settings("fnn")
 
 
+def test_a_new_run_without_a_plan_starts_from_the_default_plan(
+    data_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """No --plan: the default plan's settings (here with shortened phases given by --set, which
+    win) and its width; the warm-up's decision is printed. Data with estimated velocities start
+    from the training defaults instead (their multi-step settings come from the data)."""
+    short = ["--set", "train.warmup_steps=5", "--set", "train.steps=4", "--set", "train.lbfgs_steps=2"]
+    short += ["--set", "train.lbfgs_pairs=64", "--set", "train.val_every=2"]
+    code, _, err = cli(["train", str(data_file), "-o", str(tmp_path / "run"), *short], capsys)
+    assert code == 0, err
+    info = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert (
+        info["train_config"]["warmup_accept"] == AUTO_WARMUP_ACCEPT == PLANS[DEFAULT_PLAN].train.warmup_accept
+    )
+    assert info["model_config"]["width"] == 32 and info["train_config"]["lbfgs_pairs"] == 64
+    # a steady vortex is not a linear flow: the warm-up is given up at its first record
+    warm = [r for r in info["history"] if r.get("phase") == "warmup"]
+    assert [r["warmup"] for r in warm] == ["discarded"] and warm[0]["val_total"] > 1e4 * AUTO_WARMUP_ACCEPT
+    assert f"warm-up discarded at iteration {warm[0]['iteration']} of 5 (validation loss" in err
+    assert info["step"] == 6 and [r["step"] for r in info["history"] if "phase" not in r] == [2, 4]
+    ds = read_dataset(data_file)
+    assert default_settings(ds) == PLANS[DEFAULT_PLAN].settings("fhnn")
+    ds.extra["measured"] = ["positions"]  # velocities estimated (an imported table)
+    assert default_settings(ds) == {}
+
+
 def test_resume_refuses_other_settings_and_runs_are_found_from_anywhere(
     data_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -108,7 +137,7 @@ def test_resume_refuses_other_settings_and_runs_are_found_from_anywhere(
     settings = project / "s.toml"
     settings.write_text("[model]\nwidth = 8\n[train]\nval_every = 2\n")
     monkeypatch.chdir(project)
-    start = ["train", "d.h5", "-o", "run", "--steps", "4", "--config", "s.toml", "-q"]
+    start = ["train", "d.h5", "-o", "run", "--plan", "adam", "--steps", "4", "--config", "s.toml", "-q"]
     code, _, err = cli(start, capsys)
     assert code == 0, err
     info = json.loads((project / "run" / "run.json").read_text())

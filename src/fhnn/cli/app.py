@@ -30,7 +30,7 @@ from fhnn.files import check_new_folder, check_output_path
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
 from fhnn.runtime import __version__, default_cache_dir, use_compilation_cache
-from fhnn.training.plans import PLANS, data_settings, get_plan
+from fhnn.training.plans import DEFAULT_PLAN, PLANS, data_settings, default_settings, get_plan
 
 # Typer >= 0.29 vendors its own click; older releases raise click's exceptions.
 _USAGE_ERRORS: tuple[type[Exception], ...] = (typer.TyperException,)
@@ -324,7 +324,8 @@ def train(
         str | None,
         typer.Option(
             help=f"Training plan: {'|'.join(PLANS)} (its training settings and the model settings it "
-            "was measured with; --set wins; see README) [default: adam]"
+            f"was measured with; --set wins; see README) [default: {DEFAULT_PLAN}; the training defaults "
+            "on data with estimated velocities]"
         ),
     ] = None,
     steps: Annotated[
@@ -335,6 +336,16 @@ def train(
     ] = None,
     seed: Annotated[
         int | None, typer.Option(help="Seed of initialisation and batch order (train.seed) [default: 0]")
+    ] = None,
+    max_time: Annotated[
+        float | None,
+        typer.Option(
+            "--max-time",
+            help="Wall-clock budget in seconds for this command's training of a run (train.max_time; "
+            "compilation included, a resumed run starts a new budget): the phases before an L-BFGS "
+            "polish end at half of it, the polish at all of it, each at its next step, and the run "
+            "says what was cut [default: none]",
+        ),
     ] = None,
     n_seeds: Annotated[
         int | None,
@@ -373,6 +384,7 @@ def train(
             "model.ablation": ("--ablation", ablation),
             "train.steps": ("--steps", steps),
             "train.seed": ("--seed", seed),
+            "train.max_time": ("--max-time", max_time),
         },
     )
     kind = str(settings.get("kind", "fhnn"))
@@ -385,10 +397,13 @@ def train(
     config = RunConfig().with_settings(settings)  # every setting checked before any work
     check_new_folder(out)
     dataset = read_dataset(data)
+    # a new run without --plan starts from the default plan; a resumed run keeps what it stored
+    start = default_settings(dataset, kind) if plan is None else {}
     implied = {k: v for k, v in data_settings(dataset).items() if k not in given}
-    if implied:  # what the data's estimated fields call for, below any setting given
+    if implied or start:
         settings = {**settings, **implied}
-        config = RunConfig().with_settings(settings)
+        config = RunConfig().with_settings({**start, **settings})
+    if implied:  # what the data's estimated fields call for, below any setting given
         if not quiet:
             estimated = [f for f in ("velocities", "derivatives") if f not in dataset.measured]
             with_ = ", ".join(f"{k}={v}" for k, v in implied.items())
@@ -414,7 +429,7 @@ def train(
         _train_run(
             folder,
             member,
-            RunConfig().with_settings(member),
+            RunConfig().with_settings({**start, **member}),
             dataset,
             data,
             extend=extend,
@@ -506,10 +521,25 @@ def _train_run(
     if run.state.stopped is not None:  # said even with -q: the run ended before its plan did
         err.print(_stopped_text(run), highlight=False, soft_wrap=True)
     if not quiet:
+        decided = [r for r in run.state.history if "warmup" in r]
+        if decided:
+            err.print(_warmup_text(decided[-1], run.train_config), highlight=False, soft_wrap=True)
         best = run.state.best_val
         stdout.print(
             f"trained {run.kind} for {run.state.step} steps; best validation loss {best:.3e}; saved to {out}"
         )
+
+
+def _warmup_text(record: dict[str, Any], train: Any) -> str:
+    """What the warm-up's validation loss decided (``train.warmup_accept``)."""
+    val, accept = record["val_total"], train.warmup_accept
+    if record["warmup"] == "kept":
+        return f"warm-up kept (validation loss {val:.2e} <= {accept:g}): Adam skipped, polished from it"
+    return (
+        f"warm-up discarded at iteration {record['iteration']} of {train.warmup_steps} (validation loss "
+        f"{val:.2e} > {accept:g}: the linear far field does not explain this flow); Adam started from "
+        "the initial model"
+    )
 
 
 def _stopped_text(run: Any) -> str:

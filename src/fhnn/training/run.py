@@ -39,6 +39,7 @@ from fhnn.files import check_new_folder, commit_files, recover_files
 from fhnn.models.base import AbstractModel, AbstractVectorField
 from fhnn.models.registry import MODELS
 from fhnn.runtime import __version__
+from fhnn.training.plans import data_settings, default_settings
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
 RUN_FORMAT = "fhnn-run"
@@ -472,9 +473,12 @@ def train(
     *,
     callback: Callable[[TrainState, dict[str, float]], None] | None = None,
 ) -> Run:
-    """Train ``config`` (default: FHNN, default training) on ``data`` (a data set or an HDF5 path)
-    into the run folder ``out``. A folder that already holds a run resumes it — with its stored
-    settings when ``config`` is ``None``; a ``config`` that differs from them is refused."""
+    """Train ``config`` on ``data`` (a data set or an HDF5 path) into the run folder ``out``.
+    Without ``config``: FHNN as ``fhnn train`` with no options trains it — the default plan
+    (:func:`~fhnn.training.plans.default_settings`) and what the data's estimated fields call for
+    (:func:`~fhnn.training.plans.data_settings`). A folder that already holds a run resumes it —
+    with its stored settings when ``config`` is ``None``; a ``config`` that differs from them is
+    refused."""
     path = None if isinstance(data, Dataset) else Path(data)
     dataset = data if isinstance(data, Dataset) else read_dataset(data)
     out = Path(out)
@@ -484,7 +488,9 @@ def train(
         if changed:
             raise ConfigError(f"{out} holds a run started with other settings ({', '.join(changed)})")
     else:
-        run = Run.create(out, dataset, config or RunConfig(), data_path=path)
+        if config is None:
+            config = RunConfig().with_settings({**default_settings(dataset), **data_settings(dataset)})
+        run = Run.create(out, dataset, config, data_path=path)
     run.train(dataset, callback=callback)
     return run
 

@@ -83,6 +83,16 @@ class TrainConfig(Config):
             loss that needs neither measured velocities nor derivatives (``fhnn train`` turns it
             on for data whose velocities were estimated).
         w_shoot: weight of the multi-step loss.
+        warmup_accept: what the warm-up's validation loss decides (0: nothing — Adam always
+            follows the warm-up). Above 0, a warm-up whose validation loss is at or below it is
+            kept and the Adam phase is skipped (the polish starts from the warm-up: the linear
+            far field and the coefficients explain the data, and quasi-Newton finishes the job);
+            a warm-up above it is discarded and Adam starts from the initial model (a far field
+            that cannot explain the flow drives the coefficients to a corner Adam does not leave:
+            on ``steady_vortex`` the warm-up sent c_l to 0). The decision is logged in the
+            warm-up's last history record (``"warmup": "kept"`` or ``"discarded"``).
+        max_time: wall-clock budget in seconds for the training in one process (0: none); see
+            :meth:`Trainer.budget`. A phase cut short by it says so in ``stopped``.
         stop_rising: the Adam phase ends early once the validation loss has risen at this many
             validations in a row (0: never); the polish, if any, then starts from the best model,
             as it always does. Six rises in a row — seven
@@ -108,6 +118,8 @@ class TrainConfig(Config):
     lbfgs_steps: int = 0
     lbfgs_pairs: int = 8192
     lbfgs_memory: int = 100
+    warmup_accept: float = 0.0
+    max_time: float = 0.0
     stop_rising: int = 6
     shoot: int = 0
     w_shoot: float = 1.0
@@ -117,6 +129,7 @@ class TrainConfig(Config):
         check_positive(self, "lbfgs_memory")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
         check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot")
+        check_nonnegative(self, "warmup_accept", "max_time")
         if self.shoot == 1:
             raise ConfigError("training: shoot must be 0 (off) or at least 2 samples, got 1")
         if any(not 0 < b < 1 for b in self.lr_boundaries):
@@ -157,6 +170,17 @@ QUASI_NEWTON_FIELDS = ("w_deriv", "w_step", "w_shoot", "lbfgs_memory")
 #: Adam steps without the flow penalty it takes to gain a second compiled step back: the step
 #: without it is 1.8 ms faster on FHNN at batch 256 and compiles in ~5 s (training_speed.py).
 PENALTY_FREE_MIN_STEPS = 5000
+
+#: A warm-up is abandoned (and discarded) at a record whose validation loss is above this many
+#: times ``warmup_accept``: more than a warm-up was seen to fall in the rest of its iterations
+#: (``solid_body_vortex``: 230× from iteration 40 to 400; ``steady_vortex`` stays at 0.13 from
+#: iteration 40 on, ``time_varying_vortex`` at 0.17).
+WARMUP_GIVE_UP = 1e4
+
+#: Share of ``max_time`` that the phases before an L-BFGS polish may use (the polish gets the rest:
+#: an iteration on the whole model costs ~25 Adam steps, and it is what brings the loss below
+#: Adam's noise floor).
+PRE_POLISH_SHARE = 0.5
 
 #: Loss terms that are regularisers: weighted by the annealed ``lambda_flow``, left out of validation.
 REGULARIZERS = ("flow",)
@@ -229,6 +253,8 @@ class Trainer:
         self.config = config
         self._on_step = on_step
         self._told = -1.0
+        #: When this trainer was made: the start of ``config.max_time`` (see :meth:`deadline`).
+        self.started = time.monotonic()
         self.train_pairs = Windows.of(train, window)
         val_pairs = Windows.of(val, window)
         if len(val_pairs) > config.val_pairs:
@@ -242,6 +268,35 @@ class Trainer:
         # a fixed key for the stochastic parts of a model's objective (DHN's denoising) on validation
         self._val = {**self.val_pairs.as_jax(), "key": jax.random.PRNGKey(config.seed + 3)}
         self._key = jax.random.PRNGKey(config.seed + 1)
+
+    def deadline(self, phase: str) -> float:
+        """When ``phase`` ("warmup", "adam" or "lbfgs") must end under ``config.max_time``
+        (``time.monotonic()`` seconds; infinite without a budget). The budget counts from the
+        trainer's creation (a resumed run starts a new one) and includes compilation. When a
+        polish follows, the phases before it end at :data:`PRE_POLISH_SHARE` of the budget, so the
+        polish — from the best model so far — gets the rest; the polish ends at the budget."""
+        cfg = self.config
+        if cfg.max_time <= 0:
+            return np.inf
+        share = PRE_POLISH_SHARE if phase != "lbfgs" and cfg.lbfgs_steps > 0 else 1.0
+        return self.started + share * cfg.max_time
+
+    def _over_budget(self, phase: str, step: int, of: int, what: str) -> str | None:
+        """The ``stopped`` text when ``phase`` has run past its :meth:`deadline`, else ``None``."""
+        if time.monotonic() < self.deadline(phase):
+            return None
+        cfg = self.config
+        spent = time.monotonic() - self.started
+        unit = "step" if phase == "adam" else "iteration"
+        share = (
+            ""
+            if phase == "lbfgs" or cfg.lbfgs_steps == 0
+            else f", {PRE_POLISH_SHARE:.0%} of it before the polish"
+        )
+        return (
+            f"{what} stopped at {unit} {step} of {of}: the time budget "
+            f"(train.max_time={cfg.max_time:g} s{share}) ran out after {spent:.0f} s"
+        )
 
     @property
     def total_steps(self) -> int:
@@ -257,8 +312,25 @@ class Trainer:
         if parts is None or self.config.warmup_steps == 0:
             return state
         part, restore = parts
-        state = self._quasi_newton(state, part, self.config.warmup_steps, "warmup", callback, restore)
-        state.best_model, state.best_val = state.model, state.history[-1]["val_total"]
+        initial, accept = state.model, self.config.warmup_accept
+        hopeless = None
+        if accept > 0:  # a warm-up that cannot reach the threshold is not finished
+
+            def hopeless(record: dict[str, Any]) -> bool:
+                return not record["val_total"] <= WARMUP_GIVE_UP * accept
+
+        state = self._quasi_newton(
+            state, part, self.config.warmup_steps, "warmup", callback, restore, give_up=hopeless
+        )
+        last = state.history[-1]
+        if accept > 0 and not last["val_total"] <= accept:  # a NaN loss is discarded too
+            last["warmup"] = "discarded"
+            state.model, state.best_model, state.best_val = initial, initial, np.inf
+        else:
+            state.best_model, state.best_val = state.model, last["val_total"]
+            if accept > 0:
+                last["warmup"] = "kept"
+                state.step = self.config.steps  # Adam skipped: the polish follows
         state.opt_state = self.optimizer.init(eqx.filter(state.model, eqx.is_array))
         return state
 
@@ -276,11 +348,13 @@ class Trainer:
         phase: str,
         callback: Callable[[TrainState, dict[str, float]], None] | None,
         restore: Callable[[AbstractModel], AbstractModel] = lambda m: m,
+        give_up: Callable[[dict[str, Any]], bool] | None = None,
     ) -> TrainState:
         """``iterations`` full-batch quasi-Newton steps on the parameters of ``start``, on a seeded
         subset of the training pairs; validates and records ``restore(iterate)`` five times, the
         last at the last iterate, which ``state.model`` then holds (``phase`` "warmup": records at
-        step 0; "lbfgs": at the steps after Adam's)."""
+        step 0; "lbfgs": at the steps after Adam's). ``give_up(record)`` true at a record, or the
+        phase's time budget spent (:meth:`deadline`), ends the phase there."""
         cfg = self.config
         n = min(cfg.lbfgs_pairs, len(self.train_pairs))
         idx = np.sort(np.random.default_rng(cfg.seed + 2).choice(len(self.train_pairs), n, replace=False))
@@ -291,14 +365,24 @@ class Trainer:
         qn_cfg = cfg.only(QUASI_NEWTON_FIELDS)
         opt_state = strong_types(optax.lbfgs(memory_size=cfg.lbfgs_memory).init(params))
         every = max(1, min(cfg.val_every, iterations // 5 or 1))
+        what = "the warm-up" if phase == "warmup" else "the L-BFGS polish"
         for k in range(iterations):
             params, opt_state, value = quasi_newton_step(params, opt_state, static, batch, scales, qn_cfg)
             done = k + 1
             self._tell(phase, 0 if phase == "warmup" else cfg.steps + done, first=k == 0)
-            if done % every == 0 or done == iterations:
+            late = None if done == iterations else self._over_budget(phase, done, iterations, what)
+            if late is not None:
+                state.stopped = f"{state.stopped}; {late}" if state.stopped else late
+            if done % every == 0 or done == iterations or late is not None:
                 record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
                 record.update({"phase": phase, "iteration": done})
                 self._record(state, restore(eqx.combine(params, static)), record, callback)
+                if give_up is not None and give_up(record):
+                    break
+            if late is not None:
+                if phase == "lbfgs":
+                    state.step = self.total_steps  # the run is over: a resume does not polish again
+                break
         return state
 
     def _record(
@@ -309,12 +393,14 @@ class Trainer:
         callback: Callable[[TrainState, dict[str, float]], None] | None,
         *,
         stop: TrainConfig | None = None,
+        late: str | None = None,
     ) -> None:
         """Validate ``model``, log ``record`` with the validation terms, keep the best model,
         advance ``state`` to ``record["step"]`` and call ``callback``. Under an Adam configuration
         ``stop`` (when given) whose guard fires (:func:`stop_reason`), ``state.stopped`` says why
         and ``state.step`` jumps to the end of the Adam phase — before ``callback`` saves the
-        checkpoint, so a resumed run goes on to the polish, not back into Adam."""
+        checkpoint, so a resumed run goes on to the polish, not back into Adam; ``late`` (the time
+        budget ran out) stops it the same way."""
         val = self.validate(model)
         record.update({f"val_{k}": v for k, v in val.items()})
         state.history.append(record)
@@ -324,6 +410,9 @@ class Trainer:
         reason = None if stop is None else stop_reason(state.history, stop)
         if reason is not None:
             state.stopped = f"Adam stopped at step {record['step']} of {stop.steps}: {reason}"
+        elif late is not None:
+            state.stopped = f"{state.stopped}; {late}" if state.stopped else late
+        if stop is not None and (reason is not None or late is not None):
             state.step = stop.steps
         if callback is not None:
             callback(state, record)
@@ -381,14 +470,15 @@ class Trainer:
             skipped = skipped + last["skipped"]
             done = i + 1
             self._tell("adam", done, first=i == state.step)
-            if done % cfg.val_every == 0 or done == cfg.steps:
+            late = None if done == cfg.steps else self._over_budget("adam", done, cfg.steps, "Adam")
+            if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
                 record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items() if k != "skipped"}}
                 record["skipped_steps"] = float(skipped)  # since the previous record (non-finite loss)
                 record["lr"] = float(cfg.schedule()(i))
                 record["lambda_flow"] = float(cfg.flow_weight(jnp.asarray(i)))
                 skipped = jnp.zeros(())
                 state.opt_state, state.skipped = opt_state, 0.0
-                self._record(state, model, record, callback, stop=cfg)
+                self._record(state, model, record, callback, stop=cfg, late=late)
                 saved = time.monotonic()
                 if state.stopped is not None:  # the Adam phase is over (see _record)
                     return state

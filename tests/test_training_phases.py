@@ -1,0 +1,86 @@
+"""What ends or skips a training phase: the warm-up's route decision (``train.warmup_accept``)
+and the time budget (``train.max_time``)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+
+import equinox as eqx
+import jax
+import numpy as np
+import pytest
+
+from fhnn.errors import ConfigError
+from fhnn.models.baselines import MLPConfig
+from fhnn.models.fhnn import FHNNConfig
+from fhnn.training.run import Run, RunConfig
+from fhnn.training.trainer import TrainConfig
+
+from .conftest import small_dataset
+
+
+def arrays(tree):
+    return jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array))
+
+
+def test_the_warmup_is_kept_or_discarded_by_its_validation_loss(tmp_path):
+    """``train.warmup_accept``: a warm-up whose validation loss is at or below it is kept and Adam
+    is skipped (the polish follows); one above it is discarded — Adam starts from the initial
+    model, as if there had been no warm-up. Checked on both sides of the measured loss."""
+    ds = small_dataset("solid_body_vortex", n_traj=8, duration=2.0)
+
+    def run(folder, accept):
+        config = TrainConfig(
+            steps=6, val_every=4, batch_size=16, warmup_steps=20, warmup_accept=accept, lbfgs_pairs=1500
+        )
+        return Run.create(tmp_path / folder, ds, RunConfig(model=FHNNConfig(width=16), train=config))
+
+    kept = run("kept", 1.0)
+    state = kept.train(ds, save=False)
+    warm = state.history[-1]
+    assert warm["phase"] == "warmup" and warm["warmup"] == "kept" and len(state.history) == 5
+    assert state.step == 6 and kept.finished  # no Adam record: Adam was skipped
+    assert state.best_val == warm["val_total"] < 1.0
+
+    discarded = run("discarded", warm["val_total"] * 0.999)
+    initial = discarded.skeleton()
+    state = discarded.train(ds, save=False, until=0)
+    assert state.history[-1]["warmup"] == "discarded" and state.best_val == np.inf
+    for a, b in zip(arrays(state.model), arrays(initial), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    state = discarded.train(ds, save=False)  # Adam, from the initial model
+    assert [r["step"] for r in state.history if "phase" not in r] == [4, 6]
+    # a warm-up 1e4 times above the threshold at a record is given up there
+    hopeless = run("hopeless", warm["val_total"] * 1e-4 / 1.001).train(ds, save=False, until=0)
+    assert [(r["iteration"], r.get("warmup")) for r in hopeless.history] == [(4, "discarded")]
+    with pytest.raises(ConfigError, match="warmup_accept"):
+        TrainConfig(warmup_accept=-1.0)
+
+
+def test_the_time_budget_ends_each_phase_and_says_so(tmp_path):
+    """``train.max_time``: with the budget spent, Adam stops at its next step (the phases before a
+    polish get half the budget), the polish at its next iteration; the run is finished (a resume
+    trains nothing) and ``stopped`` names both cuts. Without a budget nothing is cut."""
+    ds = small_dataset("steady_vortex", n_traj=4, duration=1.0)
+    config = TrainConfig(steps=50, val_every=10, batch_size=16, lbfgs_steps=5, lbfgs_pairs=64, max_time=1e-9)
+    run = Run.create(
+        tmp_path / "r", ds, RunConfig(kind="node", model=MLPConfig(width=8, depth=1), train=config)
+    )
+    state = run.train(ds)
+    assert re.fullmatch(
+        r"Adam stopped at step 1 of 50: the time budget \(train.max_time=1e-09 s, 50% of it before the "
+        r"polish\) ran out after \d+ s; the L-BFGS polish stopped at iteration 1 of 5: the time budget "
+        r"\(train.max_time=1e-09 s\) ran out after \d+ s",
+        state.stopped,
+    ), state.stopped
+    assert [(r["step"], r.get("phase")) for r in state.history] == [(1, None), (51, "lbfgs")]
+    again = Run.load(tmp_path / "r")
+    assert again.finished and again.state.stopped == state.stopped
+    free = Run.create(
+        tmp_path / "f",
+        ds,
+        RunConfig(kind="node", model=MLPConfig(width=8, depth=1), train=replace(config, max_time=0.0)),
+    )
+    state = free.train(ds, save=False)
+    assert state.stopped is None and [r["step"] for r in state.history][-1] == 55
