@@ -75,6 +75,10 @@ def main() -> None:
         coef = coefficient_recovery(state.best_model.coefficients, ds)
         out["coef_max_rel"] = {k: coef[k]["max_rel"] for k in ("m_ax", "m_ay", "c_q", "c_l")}
         out["flow_rel_l2"] = flow_recovery(state.best_model.flow, ds)["rel_l2"]
+        out["c_q_by_sigma"] = [
+            [round(b["sigma_lo"], 4), round(b["quadratic_share"], 3), round(b["c_q"], 4)]
+            for b in coef["_by_sigma"]
+        ]
     print(json.dumps(out))
 
 

@@ -11,9 +11,10 @@
    process sharing the persistent compilation cache (what every ``fhnn`` command uses).
 3. Seeds trained as one program: ``N`` models stacked and one ``vmap``-ed Adam step, against ``N``
    sequential steps (throughput ratio).
-4. With ``--targets``: time to the accuracy targets (``benchmarks/fhnn_targets.py`` with the package's
-   plans) against this project's earlier times (296 s ``solid_body_vortex``, 495 s ``steady_vortex``)
-   and the authors' JAX code (1,978 s for its 18,000 steps; RMSE(pos) 1.2e-4 m at 1 s).
+4. With ``--targets``: time to the accuracy targets (``benchmarks/fhnn_targets.py``: the default
+   plan, as ``fhnn train`` runs it) against this project's earlier times (296 s
+   ``solid_body_vortex``, 495 s ``steady_vortex``) and the authors' JAX code (1,978 s for its
+   18,000 steps; RMSE(pos) 1.2e-4 m at 1 s).
 
 Usage::
 
@@ -199,7 +200,9 @@ def seeds_as_one(ds, n: int) -> None:
 
 
 def to_targets(out: Path) -> None:
-    print("4. time to the accuracy targets (benchmarks/fhnn_targets.py, the package's plans)")
+    print(
+        "4. time to the accuracy targets (benchmarks/fhnn_targets.py, the default plan as fhnn train runs it)"
+    )
     for name, only in (("solid_body_vortex", "solid"), ("steady_vortex", "steady")):
         log = subprocess.run(
             [sys.executable, "benchmarks/fhnn_targets.py", "--only", only, "--out", str(out / only)],

@@ -400,13 +400,15 @@ def train(
     # a new run without --plan starts from the default plan; a resumed run keeps what it stored
     start = default_settings(dataset, kind) if plan is None else {}
     implied = {k: v for k, v in data_settings(dataset).items() if k not in given}
-    if implied or start:
-        settings = {**settings, **implied}
-        config = RunConfig().with_settings({**start, **settings})
-    if implied:  # what the data's estimated fields call for, below any setting given
+    before = RunConfig().with_settings({**start, **settings})
+    settings = {**settings, **implied}
+    config = RunConfig().with_settings({**start, **settings})
+    # what the data's estimated fields call for (below any setting given) and changes
+    said = {k: v for k, v in implied.items() if get_setting(before, k) != get_setting(config, k)}
+    if said:
         if not quiet:
             estimated = [f for f in ("velocities", "derivatives") if f not in dataset.measured]
-            with_ = ", ".join(f"{k}={v}" for k, v in implied.items())
+            with_ = ", ".join(f"{k}={v}" for k, v in said.items())
             err.print(
                 f"{data}: {' and '.join(estimated)} were estimated, not measured: training with {with_} "
                 "(--set wins)",

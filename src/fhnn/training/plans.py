@@ -63,7 +63,9 @@ PLANS: dict[str, TrainingPlan] = {
             "if its validation loss is <= 1e-6 the warm-up is kept and L-BFGS polishes everything "
             "(the warmup-polish route), otherwise it is discarded and 12,000 Adam steps and the "
             "polish (700) follow from the initial model (the adam-polish route); models without a "
-            "warm-up part take the second route",
+            "warm-up part take the second route. solid_body_vortex (kept): RMSE(pos) 5.1e-6 / 1.3e-5 / "
+            "1.2e-3 m at 1 / 5 / 60 s in 188 s; steady_vortex (discarded): 5.6e-5 m at 5 s, masses "
+            "within 0.57 %, c_l 1.2 %, flow 0.049 %, in 290 s (Adam step 15.2 ms on that run)",
             TrainConfig(
                 warmup_steps=400,
                 warmup_accept=AUTO_WARMUP_ACCEPT,
