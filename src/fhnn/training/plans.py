@@ -63,15 +63,18 @@ PLANS: dict[str, TrainingPlan] = {
             "if its validation loss is <= 1e-6 the warm-up is kept and L-BFGS polishes everything "
             "(the warmup-polish route), otherwise it is discarded and 12,000 Adam steps and the "
             "polish (700) follow from the initial model (the adam-polish route); models without a "
-            "warm-up part take the second route. solid_body_vortex (kept): RMSE(pos) 5.1e-6 / 1.3e-5 / "
-            "1.2e-3 m at 1 / 5 / 60 s in 188 s; steady_vortex (discarded): 5.6e-5 m at 5 s, masses "
-            "within 0.57 %, c_l 1.2 %, flow 0.049 %, in 290 s (Adam step 15.2 ms on that run)",
+            "warm-up part take the second route; 4,000 pairs. solid_body_vortex (kept): RMSE(pos) "
+            "5.7e-6 / 1.9e-5 / 1.3e-3 m at 1 / 5 / 60 s in 102 s; steady_vortex (discarded): 5.5e-5 m "
+            "at 5 s, masses within 0.53 %, c_l 1.3 %, flow 0.050 %, in 178 s (Adam step 14.4 ms on "
+            "that run)",
             TrainConfig(
                 warmup_steps=400,
                 warmup_accept=AUTO_WARMUP_ACCEPT,
                 steps=12000,
                 lbfgs_steps=700,
-                lbfgs_pairs=8000,
+                # 4,000 pairs: validation loss 2.01e-9 against 1.995e-9 (solid_body_vortex) and
+                # 3.05e-7 against 3.18e-7 (steady_vortex) with 8,000, data seed 1, at ~0.64x the time
+                lbfgs_pairs=4000,
             ),
             model={"fhnn": {"width": 32}},
         ),
