@@ -14,6 +14,8 @@ import os
 import shutil
 import tempfile
 
+import equinox as eqx
+import jax
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
@@ -70,6 +72,11 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 #: Small data sets: every split present, short trajectories, fast to simulate.
 SMALL = dict(n_traj=6, duration=3.0, test_duration=6.0)
+
+
+def arrays(tree: object) -> list:
+    """The array leaves of a model or state, in order."""
+    return jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array))
 
 
 def small_dataset(name: str, **overrides: object) -> Dataset:

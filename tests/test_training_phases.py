@@ -6,8 +6,6 @@ from __future__ import annotations
 import re
 from dataclasses import replace
 
-import equinox as eqx
-import jax
 import numpy as np
 import pytest
 
@@ -15,13 +13,9 @@ from fhnn.errors import ConfigError
 from fhnn.models.baselines import MLPConfig
 from fhnn.models.fhnn import FHNNConfig
 from fhnn.training.run import Run, RunConfig
-from fhnn.training.trainer import TrainConfig
+from fhnn.training.trainer import TrainConfig, Trainer
 
-from .conftest import small_dataset
-
-
-def arrays(tree):
-    return jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array))
+from .conftest import arrays, small_dataset
 
 
 def test_the_warmup_is_kept_or_discarded_by_its_validation_loss(tmp_path):
@@ -84,3 +78,22 @@ def test_the_time_budget_ends_each_phase_and_says_so(tmp_path):
     )
     state = free.train(ds, save=False)
     assert state.stopped is None and [r["step"] for r in state.history][-1] == 55
+
+
+def test_an_earlier_phase_cut_does_not_end_adam(tmp_path):
+    """A run whose warm-up the budget cut in an earlier process resumes with a new budget: its
+    stored ``stopped`` text must not end Adam at its first validation (only a cut of this phase
+    does), so Adam runs to its end and the polish follows."""
+    ds = small_dataset("steady_vortex", n_traj=4, duration=1.0)
+    config = TrainConfig(steps=4, val_every=2, batch_size=16)
+    run = Run.create(
+        tmp_path / "r", ds, RunConfig(kind="node", model=MLPConfig(width=8, depth=1), train=config)
+    )
+    earlier = (
+        "the warm-up stopped at iteration 3 of 8: the time budget (train.max_time=9 s) ran out after 5 s"
+    )
+    run.state = Trainer(config, ds.train, ds.val).init(run.skeleton())
+    run.state.stopped = earlier
+    state = run.train(ds, save=False)
+    assert [r["step"] for r in state.history] == [2, 4] and state.step == 4 and run.finished
+    assert state.stopped == earlier

@@ -23,11 +23,7 @@ from fhnn.runtime import CACHE_ENV, default_cache_dir
 from fhnn.training.run import Run
 from fhnn.training.trainer import ADAM_FIELDS, PENALTY_FREE_MIN_STEPS, TrainConfig, Trainer, adam_step
 
-from .conftest import SMALL, small_dataset
-
-
-def arrays(tree):
-    return jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array))
+from .conftest import SMALL, arrays, small_dataset
 
 
 @pytest.fixture(scope="module")

@@ -92,7 +92,7 @@ class TrainConfig(Config):
             on ``steady_vortex`` the warm-up sent c_l to 0). The decision is logged in the
             warm-up's last history record (``"warmup": "kept"`` or ``"discarded"``).
         max_time: wall-clock budget in seconds for the training in one process (0: none); see
-            :meth:`Trainer.budget`. A phase cut short by it says so in ``stopped``.
+            :meth:`Trainer.deadline`. A phase cut short by it says so in ``stopped``.
         stop_rising: the Adam phase ends early once the validation loss has risen at this many
             validations in a row (0: never); the polish, if any, then starts from the best model,
             as it always does. Six rises in a row — seven
@@ -371,12 +371,10 @@ class Trainer:
             done = k + 1
             self._tell(phase, 0 if phase == "warmup" else cfg.steps + done, first=k == 0)
             late = None if done == iterations else self._over_budget(phase, done, iterations, what)
-            if late is not None:
-                state.stopped = f"{state.stopped}; {late}" if state.stopped else late
             if done % every == 0 or done == iterations or late is not None:
                 record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
                 record.update({"phase": phase, "iteration": done})
-                self._record(state, restore(eqx.combine(params, static)), record, callback)
+                self._record(state, restore(eqx.combine(params, static)), record, callback, late=late)
                 if give_up is not None and give_up(record):
                     break
             if late is not None:
@@ -394,13 +392,14 @@ class Trainer:
         *,
         stop: TrainConfig | None = None,
         late: str | None = None,
-    ) -> None:
+    ) -> bool:
         """Validate ``model``, log ``record`` with the validation terms, keep the best model,
         advance ``state`` to ``record["step"]`` and call ``callback``. Under an Adam configuration
         ``stop`` (when given) whose guard fires (:func:`stop_reason`), ``state.stopped`` says why
         and ``state.step`` jumps to the end of the Adam phase — before ``callback`` saves the
         checkpoint, so a resumed run goes on to the polish, not back into Adam; ``late`` (the time
-        budget ran out) stops it the same way."""
+        budget ran out, in any phase) is appended to ``state.stopped`` and stops Adam the same
+        way. Returns whether this record ended the phase."""
         val = self.validate(model)
         record.update({f"val_{k}": v for k, v in val.items()})
         state.history.append(record)
@@ -412,10 +411,12 @@ class Trainer:
             state.stopped = f"Adam stopped at step {record['step']} of {stop.steps}: {reason}"
         elif late is not None:
             state.stopped = f"{state.stopped}; {late}" if state.stopped else late
-        if stop is not None and (reason is not None or late is not None):
+        ended = reason is not None or late is not None
+        if stop is not None and ended:
             state.step = stop.steps
         if callback is not None:
             callback(state, record)
+        return ended
 
     def _tell(self, phase: str, step: int, *, first: bool) -> None:
         if self._on_step is None:
@@ -478,9 +479,9 @@ class Trainer:
                 record["lambda_flow"] = float(cfg.flow_weight(jnp.asarray(i)))
                 skipped = jnp.zeros(())
                 state.opt_state, state.skipped = opt_state, 0.0
-                self._record(state, model, record, callback, stop=cfg, late=late)
+                ended = self._record(state, model, record, callback, stop=cfg, late=late)
                 saved = time.monotonic()
-                if state.stopped is not None:  # the Adam phase is over (see _record)
+                if ended:  # the Adam phase is over (see _record); not an earlier phase's stop
                     return state
             elif checkpoint is not None and time.monotonic() - saved >= checkpoint_seconds:
                 state.model, state.opt_state, state.step, state.skipped = (
