@@ -1,8 +1,9 @@
 """Batched ground-truth simulation of a scenario into a :class:`~fhnn.data.dataset.Dataset`.
 
 Trajectories are integrated many at once (``jax.vmap`` over an adaptive Dopri8 solve, compiled
-once per batch shape) at ``rtol = atol = 1e-12`` by default, with steps landing on every sample
-time (measured real error 1.6e-12 over 20 s of ``steady_vortex``, against scipy DOP853 at 1e-13).
+once per data set: every split runs through the same padded batch shape) at
+``rtol = atol = 1e-12`` by default, with steps landing on every sample time (measured real error
+1.6e-12 over 20 s of ``steady_vortex``, against scipy DOP853 at 1e-13).
 Trajectories a scenario rejects (the obstacle's close approaches) or on which the solver fails are
 redrawn from the same random stream, and the number of redraws is recorded in the data set (``redraws``).
 
@@ -180,7 +181,10 @@ def simulate_dataset(
 ) -> Dataset:
     """Simulate the train, val and test splits of ``scenario`` under ``config``.
 
-    Splits with the same sample times are integrated together (one compiled batch shape).
+    Splits with the same sample times are integrated together, and every group through one
+    compiled program: its times are padded to the longest group's by repeating the last time (the
+    solver steps onto each time, so the states up to the group's own end are those of an unpadded
+    solve, bit for bit), and all groups use the batch size of the smallest.
 
     Raises:
         SimulationError: when rejected or failed trajectories still remain after
@@ -199,8 +203,11 @@ def simulate_dataset(
     clean: dict[str, np.ndarray] = {}
     act: dict[str, np.ndarray] = {}
     redraws: dict[str, int] = {}
+    longest = max(groups)
+    batch = min(config.batch_size, *(sum(sizes[n] for n in names) for names in groups.values()))
     for names in groups.values():
         ts = config.times(names[0])
+        padded = np.concatenate([ts, np.full(longest - ts.size, ts[-1])])
         label = "+".join(names)
         total = sum(sizes[n] for n in names)
         report = (lambda done, label=label, total=total: progress(label, done, total)) if progress else None
@@ -209,11 +216,11 @@ def simulate_dataset(
         y0 = np.concatenate([d[0] for d in draws])
         forcing = np.concatenate([d[1] for d in draws])
         states, forcing, counts = _simulate_group(
-            scenario, eom, config, [rngs[n] for n in names], owner, y0, forcing, ts, label, report
+            scenario, eom, config, [rngs[n] for n in names], owner, y0, forcing, padded, batch, label, report
         )
         for i, name in enumerate(names):
             clean[name], act[name], redraws[name] = (
-                states[owner == i],
+                states[owner == i, : ts.size],
                 forcing[owner == i],
                 counts[i],
             )
@@ -274,11 +281,12 @@ def _simulate_group(
     y0: np.ndarray,
     act: np.ndarray,
     ts: np.ndarray,
+    batch: int,
     label: str,
     progress: Callable[[int], None] | None,
 ) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """Integrate, then redraw rejected trajectories (each from its own split's stream)."""
-    batch = min(config.batch_size, y0.shape[0])
+    """Integrate ``batch`` trajectories at a time, then redraw rejected ones (each from its own
+    split's stream)."""
     solve = lambda y, a, report=None: integrate(  # noqa: E731
         eom, y, a, ts, rtol=config.rtol, atol=config.atol, batch_size=batch, progress=report
     )
