@@ -356,30 +356,56 @@ def _render(html: Path, tmp: Path) -> str:
     return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True).stdout
 
 
-def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None:
-    """The README's main job, with its jobs in one process (``--workers 1``: in the suite the other
-    test worker already keeps the second core busy, and one process compiles each shared program
-    once; two worker processes: tests/test_faults.py and the Ray test). (Kills and resumes of a
-    reproduction: tests/test_faults.py.)"""
-    out = tmp_path / "report"
+#: ``--quick`` cut to a third of its jobs that still fills every table and figure of the report:
+#: T1–T3 with FHNN and the Neural ODE, T5 with one ablation, T4 on ``steady_vortex`` (actuated).
+SMALL_GRID = [
+    "--set",
+    "models=fhnn,node",
+    "--set",
+    "ablations=no_flow",
+    "--set",
+    "scenario_table=steady_vortex",
+]
+
+
+def _reproduce_twice(out: Path, *settings: str) -> None:
+    """Run ``fhnn reproduce --quick`` with ``settings`` into ``out`` (its jobs in one process:
+    ``--workers 1``; in the suite the other test worker already keeps the second core busy), then
+    again, which must run nothing and keep the report."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     run = subprocess.run(
-        _fhnn("reproduce", "--quick", "-o", str(out), "-q", "--workers", "1"),
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q", "--workers", "1", *settings),
         env=env,
         capture_output=True,
         text=True,
     )
     assert run.returncode == 0, run.stderr
-    n_jobs = len(build_grid(ReproduceConfig.quick())[1])
-    assert f"6 of 6 data sets and {n_jobs} of {n_jobs} training jobs run" in run.stdout
-    # 3. nothing changed: nothing runs, the report is kept
+    datasets, jobs = build_grid(ReproduceConfig.quick(_settings(settings)))
+    assert (
+        f"{len(datasets)} of {len(datasets)} data sets and {len(jobs)} of {len(jobs)} training jobs run"
+        in (run.stdout)
+    )
     again = subprocess.run(
-        _fhnn("reproduce", "--quick", "-o", str(out), "-q"), env=env, capture_output=True, text=True
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q", *settings),
+        env=env,
+        capture_output=True,
+        text=True,
     )
     assert again.returncode == 0, again.stderr
-    assert "0 of 6 data sets and 0 of" in again.stdout and "nothing changed, report kept" in again.stdout
+    assert (
+        f"0 of {len(datasets)} data sets and 0 of" in again.stdout
+        and "nothing changed, report kept" in again.stdout
+    )
 
-    # every table in three formats, the paper column present, numbers finite or marked diverged
+
+def _settings(args: tuple[str, ...]) -> dict[str, str]:
+    return dict(a.split("=", 1) for a in args[1::2])
+
+
+def _check_report(out: Path, tmp_path: Path, t4: set[str]) -> None:
+    """Every table in three formats, the paper column present, numbers finite or marked diverged;
+    every figure; the Markdown report; the self-contained HTML, every image decoded in headless
+    Chromium."""
     for key in ("T1", "T2", "T3", "T4", "T5", "T6"):
         rows = json.loads((out / "tables" / f"{key}.json").read_text())
         assert rows, key
@@ -393,8 +419,7 @@ def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None
         )
     t1 = json.loads((out / "tables" / "T1.json").read_text())
     assert any(r["paper"] == 1.07e-4 for r in t1)  # the paper's FHNN RMSE at 1 s beside ours
-    t4 = {r["data"] for r in json.loads((out / "tables" / "T4.json").read_text())}
-    assert t4 == {"steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "wave"}
+    assert {r["data"] for r in json.loads((out / "tables" / "T4.json").read_text())} == t4
     for stem in ("flow", "rollouts", "errors_vs_horizon", "ablations"):
         for ext in ("png", "svg"):
             path = out / "figures" / f"{stem}_solid_body_vortex.{ext}"
@@ -402,7 +427,6 @@ def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None
     assert (out / "figures" / "flow_solid_body_vortex.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     report = (out / "report.md").read_text()
     assert "### T1" in report and "### T6" in report and "![rollouts_solid_body_vortex]" in report
-    # the HTML is self-contained and every image decodes in headless Chromium
     html = (out / "index.html").read_text()
     assert "src='figures/" not in html and html.count("data:image/png;base64,") == 4
     dom = _render(out / "index.html", tmp_path)
@@ -411,3 +435,23 @@ def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None
     assert total and loaded, dom[:500]
     assert int(total.group(1)) == 4 and int(loaded.group(1)) == 4
     assert "T1: FHNN vs Neural ODE" in dom
+
+
+def test_a_reproduction_fills_every_table_and_figure_and_renders(tmp_path: Path) -> None:
+    """The README's main job on a third of its grid (:data:`SMALL_GRID`): every table and figure.
+    (All of ``--quick``: the slow test below and ``benchmarks/quick_reproduction.py``; kills and
+    resumes of a reproduction: tests/test_faults.py.)"""
+    _reproduce_twice(tmp_path / "report", *SMALL_GRID)
+    _check_report(tmp_path / "report", tmp_path, {"steady_vortex"})
+
+
+@pytest.mark.slow
+def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None:
+    """The README's main job as it is, all five scenarios in T4 (covered in the default run by
+    ``benchmarks/quick_reproduction.py``, which times it and checks the same report)."""
+    _reproduce_twice(tmp_path / "report")
+    _check_report(
+        tmp_path / "report",
+        tmp_path,
+        {"steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "wave"},
+    )

@@ -1,0 +1,115 @@
+"""Time ``fhnn reproduce --quick`` as a user runs it, and check the report it writes.
+
+Runs the README's main job in a new process with an empty compilation cache (what a fresh clone
+gets after install), then once more into a new folder with the cache it left (what a second
+reproduction of the same shapes gets), and prints:
+
+- the wall time of each, against the 90 s target and the 179 s anchor (issue 12's starting point);
+- where the cold run's time went: data sets (simulation, mostly compiling the solver), training
+  and evaluation per model job (from each job's ``result.json``), and the rest (process start,
+  imports, the report);
+- that every table T1–T6 has rows and every figure of the report exists (the checks of the slow
+  test ``tests/test_reproduce.py::test_quick_reproduction_runs_every_table_and_renders``, which
+  this script stands in for in the default test run).
+
+Usage::
+
+    python benchmarks/quick_reproduction.py [--workers N] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import fhnn
+
+TARGET_SECONDS = 90.0
+ANCHOR_SECONDS = 179.0
+TABLES = ("T1", "T2", "T3", "T4", "T5", "T6")
+FIGURES = ("flow", "rollouts", "errors_vs_horizon", "ablations")
+
+
+def run_quick(out: Path, cache: Path, workers: int | None) -> float:
+    """Wall seconds of ``fhnn reproduce --quick -o out`` with the compilation cache ``cache``."""
+    cmd = [sys.executable, "-m", "fhnn.cli.app", "reproduce", "--quick", "-o", str(out), "-q"]
+    if workers is not None:
+        cmd += ["--workers", str(workers)]
+    env = {**os.environ, "FHNN_JAX_CACHE": str(cache)}
+    t0 = time.perf_counter()
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    if done.returncode != 0:
+        sys.exit(f"fhnn reproduce --quick failed: {done.stderr.strip().splitlines()[-1:]}")
+    return seconds
+
+
+def check_report(out: Path) -> list[str]:
+    """What is missing from the report in ``out`` (empty when every table and figure is there)."""
+    missing = []
+    for key in TABLES:
+        path = out / "tables" / f"{key}.json"
+        if not path.is_file() or not json.loads(path.read_text()):
+            missing.append(f"table {key}")
+    for stem in FIGURES:
+        for ext in ("png", "svg"):
+            path = out / "figures" / f"{stem}_solid_body_vortex.{ext}"
+            if not path.is_file() or path.stat().st_size < 5000:
+                missing.append(str(path.relative_to(out)))
+    for name in ("report.md", "index.html"):
+        if not (out / name).is_file():
+            missing.append(name)
+    return missing
+
+
+def job_seconds(out: Path) -> dict[str, float]:
+    """Training and evaluation seconds summed over the model jobs in ``out``, and the job count."""
+    results = [json.loads(p.read_text()) for p in (out / "jobs").glob("*/result.json")]
+    return {
+        "jobs": len(results),
+        "train": sum(r["train_seconds"] for r in results),
+        "eval": sum(r["eval_seconds"] for r in results),
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--workers", type=int, default=None, help="as for fhnn reproduce (default: one per core)")
+    p.add_argument("--out", type=Path, default=None, help="keep the two reproductions here")
+    args = p.parse_args()
+    base = Path(tempfile.mkdtemp(prefix="fhnn-quick-")) if args.out is None else args.out
+    base.mkdir(parents=True, exist_ok=True)
+    cache = base / "jax-cache"
+    for sub in ("cold", "warm", "jax-cache"):
+        shutil.rmtree(base / sub, ignore_errors=True)
+    print(f"fhnn {fhnn.__version__}, {os.cpu_count()} CPUs, workers {args.workers or 'one per core'}")
+    cold = run_quick(base / "cold", cache, args.workers)
+    warm = run_quick(base / "warm", cache, args.workers)
+    parts = job_seconds(base / "cold")
+    print("fhnn reproduce --quick (every table and figure, 1 seed)")
+    print(
+        f"  cold compilation cache  {cold:6.1f} s   target {TARGET_SECONDS:.0f} s: "
+        f"ratio {cold / TARGET_SECONDS:.2f}  anchor {ANCHOR_SECONDS:.0f} s: ratio {cold / ANCHOR_SECONDS:.2f}"
+    )
+    print(f"  warm compilation cache  {warm:6.1f} s   ratio to cold {warm / cold:.2f}")
+    print(
+        f"  cold run's {parts['jobs']} model jobs: training {parts['train']:.1f} s, evaluation "
+        f"{parts['eval']:.1f} s of worker time (summed over workers)"
+    )
+    missing = check_report(base / "cold") + check_report(base / "warm")
+    print("  report: every table and figure present" if not missing else f"  report: MISSING {missing}")
+    if args.out is None:
+        shutil.rmtree(base, ignore_errors=True)
+    if missing:
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
