@@ -1,5 +1,6 @@
 """Ensembles (``fhnn train --seeds N``): members trained into one folder, resumed, inspected with
-median and 90 % intervals, forecast with a band; misuse refused in one line."""
+median and 90 % intervals, evaluated member by member and on average, forecast with a band; misuse
+refused in one line."""
 
 from __future__ import annotations
 
@@ -63,8 +64,37 @@ def test_members_are_runs_with_consecutive_seeds_and_resume(ensemble, capsys):
         ["train", str(ensemble / "data.h5"), "-o", str(member_folder(ens, 0)), "--seeds", "2", *TRAIN], capsys
     )
     assert code == 2 and "holds a single run, not an ensemble" in err
-    code, _, err = run(["evaluate", str(ens)], capsys)
-    assert code == 2 and "is an ensemble; give one of its runs" in err
+
+
+def test_evaluate_gives_each_member_and_their_mean(ensemble, capsys):
+    """An ensemble's errors are its members' own (as ``fhnn evaluate MEMBER`` gives them), and
+    the table and ``mean`` are their mean; diverged trajectories are summed."""
+    ens = ensemble / "ens"
+    code, out, err = run(["evaluate", str(ens), "--horizons", "1,2", "--json"], capsys)
+    assert code == 0, err
+    result = json.loads(out)
+    assert sorted(result["members"]) == ["seed-0", "seed-1", "seed-2"]
+    singles = []
+    for seed in (0, 1, 2):
+        code, out, err = run(
+            ["evaluate", str(member_folder(ens, seed)), "--horizons", "1,2", "--json"], capsys
+        )
+        assert code == 0, err
+        singles.append(json.loads(out))
+        assert singles[-1] == result["members"][f"seed-{seed}"]
+    for h in ("1", "2"):
+        values = np.array([s[h]["rmse_pos"] for s in singles])
+        assert values.min() < values.max()  # the members differ ...
+        assert result["mean"][h]["rmse_pos"] == pytest.approx(
+            values.mean(), rel=1e-12
+        )  # ... and are averaged
+        assert result["std"][h]["rmse_pos"] == pytest.approx(values.std(), rel=1e-12)
+        assert result["mean"][h]["diverged"] == sum(s[h]["diverged"] for s in singles)
+    assert result["diverged_count"] == sum(s["diverged_count"] for s in singles)
+    code, out, err = run(["evaluate", str(ens), "--horizons", "1,2"], capsys)
+    assert code == 0, err
+    assert "mean over its 3 members" in " ".join(out.split())
+    assert f"{result['mean']['2']['rmse_pos']:.3g}" in out
 
 
 def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):

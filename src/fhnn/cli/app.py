@@ -575,7 +575,7 @@ def finite_or_null(value: Any) -> Any:
 
 @app.command()
 def evaluate(
-    run_dir: Annotated[Path, typer.Argument(help="Run folder written by `fhnn train`.")],
+    run_dir: Annotated[Path, typer.Argument(help="Run folder (or ensemble folder) written by `fhnn train`.")],
     data: Annotated[
         Path | None, typer.Argument(help="Data set [default: the one the run was trained on]")
     ] = None,
@@ -592,13 +592,17 @@ def evaluate(
         typer.Option(
             "--json",
             help="Print {horizon: {metric: value}} as strict JSON; an error that is infinite (a "
-            "rollout diverged, see diverged_count) is null.",
+            'rollout diverged, see diverged_count) is null. On an ensemble: {"mean": …, "std": …, '
+            '"members": {seed: …}}.',
         ),
     ] = False,
 ) -> None:
-    """Roll the best model out from each trajectory's first state and report errors at horizons."""
+    """Roll the best model out from each trajectory's first state and report errors at horizons.
+    On an ensemble (fhnn train --seeds N): every member, and each error's mean over the members."""
     from fhnn.data.dataset import SPLITS
     from fhnn.evaluation.evaluate import evaluate as run_evaluation
+    from fhnn.evaluation.evaluate import evaluate_ensemble
+    from fhnn.training.ensemble import is_ensemble, member_folders
 
     if split not in SPLITS:
         raise ConfigError(f"--split must be one of {', '.join(SPLITS)}, got {split!r}")
@@ -608,7 +612,10 @@ def evaluate(
             hs = [float(h) for h in horizons.split(",") if h.strip()]
         except ValueError:
             raise ConfigError(f"--horizons expects numbers separated by commas, got {horizons!r}") from None
-    run, dataset = _load_run(run_dir, data)
+    folders = member_folders(run_dir) if is_ensemble(run_dir) else [run_dir]
+    runs = [_load_run(f, data)[0] for f in folders[1:]]
+    run, dataset = _load_run(folders[0], data)
+    runs.insert(0, run)
     if horizons is None:
         length = dataset[split].duration
         hs = [float(h) for h in DEFAULT_HORIZONS if h <= length + 1e-9]
@@ -623,13 +630,31 @@ def evaluate(
                 highlight=False,
                 soft_wrap=True,
             )
-    result = run_evaluation(run.state.best_model, dataset, hs, split=split)
+    if len(runs) > 1:
+        ens = evaluate_ensemble([r.state.best_model for r in runs], dataset, hs, split=split)
+        result = {"horizons": ens["mean"], "diverged": ens["members"][0]["diverged"]}
+        title = (
+            f"ensemble {run_dir} on {split} ({len(result['diverged'])} trajectories): mean over its "
+            f"{len(runs)} members (diverged: their total; --json: each member and the std)"
+        )
+        json_out = {
+            "mean": ens["mean"],
+            "std": ens["std"],
+            "members": {
+                f.name: {**m["horizons"], "diverged_count": int(sum(m["diverged"]))}
+                for f, m in zip(folders, ens["members"], strict=True)
+            },
+            "diverged_count": ens["diverged"],
+        }
+    else:
+        result = run_evaluation(run.state.best_model, dataset, hs, split=split)
+        title = f"{run_dir} on {split} ({len(result['diverged'])} trajectories)"
+        json_out = {**result["horizons"], "diverged_count": int(sum(result["diverged"]))}
     if as_json:
-        out = {**result["horizons"], "diverged_count": int(sum(result["diverged"]))}
-        typer.echo(json.dumps(finite_or_null(out), indent=2, allow_nan=False))
+        typer.echo(json.dumps(finite_or_null(json_out), indent=2, allow_nan=False))
         return
     table = Table(
-        title=f"{run_dir} on {split} ({len(result['diverged'])} trajectories)",
+        title=title,
         title_justify="left",
         box=box.SIMPLE_HEAD,
         padding=(0, 0, 0, 1),

@@ -81,3 +81,31 @@ def evaluate(
     if keep_rollout:
         out["rollout"] = ro
     return out
+
+
+def evaluate_ensemble(
+    models: list[AbstractModel], dataset: Dataset, horizons: list[float], *, split: str = "test"
+) -> dict[str, Any]:
+    """:func:`evaluate` for each member of an ensemble, and each metric's mean and standard
+    deviation over the members (a member whose rollouts diverged contributes its error as
+    :func:`evaluate` gives it, so an infinite error makes the mean infinite; ``diverged``, overall
+    and under each horizon of ``mean``, is the members' total count of diverged trajectories).
+
+    Returns:
+        ``{"members": [evaluate(...) of each], "mean": {H: {metric: value}}, "std": {H: {...}},
+        "diverged": total, "split": split}``.
+    """
+    if len(models) < 2:
+        raise ConfigError(f"an ensemble has at least 2 members, got {len(models)}")
+    members = [evaluate(m, dataset, horizons, split=split) for m in models]
+    mean: dict[str, dict[str, float]] = {}
+    std: dict[str, dict[str, float]] = {}
+    for h, first in members[0]["horizons"].items():
+        values = {k: np.array([m["horizons"][h][k] for m in members], dtype=float) for k in first}
+        counts = values.pop("diverged")
+        with np.errstate(invalid="ignore"):  # inf - inf in the std of diverged members: nan
+            mean[h] = {k: float(np.mean(v)) for k, v in values.items()}
+            std[h] = {k: float(np.std(v)) for k, v in values.items()}
+        mean[h]["diverged"] = int(counts.sum())  # a count: the members' total, as in "diverged"
+    diverged = int(sum(sum(m["diverged"]) for m in members))
+    return {"members": members, "mean": mean, "std": std, "diverged": diverged, "split": split}
