@@ -85,9 +85,8 @@ def test_evaluate_gives_each_member_and_their_mean(ensemble, capsys):
     for h in ("1", "2"):
         values = np.array([s[h]["rmse_pos"] for s in singles])
         assert values.min() < values.max()  # the members differ ...
-        assert result["mean"][h]["rmse_pos"] == pytest.approx(
-            values.mean(), rel=1e-12
-        )  # ... and are averaged
+        # ... and are averaged
+        assert result["mean"][h]["rmse_pos"] == pytest.approx(values.mean(), rel=1e-12)
         assert result["std"][h]["rmse_pos"] == pytest.approx(values.std(), rel=1e-12)
         assert result["mean"][h]["diverged"] == sum(s[h]["diverged"] for s in singles)
     assert result["diverged_count"] == sum(s["diverged_count"] for s in singles)

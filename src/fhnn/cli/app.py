@@ -602,7 +602,6 @@ def evaluate(
     from fhnn.data.dataset import SPLITS
     from fhnn.evaluation.evaluate import evaluate as run_evaluation
     from fhnn.evaluation.evaluate import evaluate_ensemble
-    from fhnn.training.ensemble import is_ensemble, member_folders
 
     if split not in SPLITS:
         raise ConfigError(f"--split must be one of {', '.join(SPLITS)}, got {split!r}")
@@ -612,10 +611,7 @@ def evaluate(
             hs = [float(h) for h in horizons.split(",") if h.strip()]
         except ValueError:
             raise ConfigError(f"--horizons expects numbers separated by commas, got {horizons!r}") from None
-    folders = member_folders(run_dir) if is_ensemble(run_dir) else [run_dir]
-    runs = [_load_run(f, data)[0] for f in folders[1:]]
-    run, dataset = _load_run(folders[0], data)
-    runs.insert(0, run)
+    folders, runs, dataset = _load_runs(run_dir, data)
     if horizons is None:
         length = dataset[split].duration
         hs = [float(h) for h in DEFAULT_HORIZONS if h <= length + 1e-9]
@@ -632,9 +628,9 @@ def evaluate(
             )
     if len(runs) > 1:
         ens = evaluate_ensemble([r.state.best_model for r in runs], dataset, hs, split=split)
-        result = {"horizons": ens["mean"], "diverged": ens["members"][0]["diverged"]}
+        rows, n_traj = ens["mean"], len(ens["members"][0]["diverged"])
         title = (
-            f"ensemble {run_dir} on {split} ({len(result['diverged'])} trajectories): mean over its "
+            f"ensemble {run_dir} on {split} ({n_traj} trajectories): mean over its "
             f"{len(runs)} members (diverged: their total; --json: each member and the std)"
         )
         json_out = {
@@ -647,9 +643,10 @@ def evaluate(
             "diverged_count": ens["diverged"],
         }
     else:
-        result = run_evaluation(run.state.best_model, dataset, hs, split=split)
+        result = run_evaluation(runs[0].state.best_model, dataset, hs, split=split)
+        rows = result["horizons"]
         title = f"{run_dir} on {split} ({len(result['diverged'])} trajectories)"
-        json_out = {**result["horizons"], "diverged_count": int(sum(result["diverged"]))}
+        json_out = {**rows, "diverged_count": int(sum(result["diverged"]))}
     if as_json:
         typer.echo(json.dumps(finite_or_null(json_out), indent=2, allow_nan=False))
         return
@@ -672,7 +669,7 @@ def evaluate(
     table.add_column("H \\[s]", justify="right")
     for header, _ in columns.values():
         table.add_column(header, justify="right")
-    for h, m in result["horizons"].items():
+    for h, m in rows.items():
         table.add_row(h, *(fmt.format(m[c]) for c, (_, fmt) in columns.items()))
     stdout.print(table)
 
@@ -863,12 +860,9 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
     median and 90 % interval (against the truth where the data were simulated), and the
     ``coefficients.csv`` / ``flow.nc`` of the ensemble (with ``_lo`` / ``_hi``) in the folder."""
     from fhnn.experiments.exports import ensemble_intervals, write_coefficients_csv, write_flow_netcdf
-    from fhnn.training.ensemble import member_folders
-    from fhnn.training.run import Run
 
-    folders = member_folders(folder)
-    first, dataset = _load_run(folders[0], data, fhnn_only=True)
-    models = [first.state.best_model] + [Run.load(f).state.best_model for f in folders[1:]]
+    _, runs, dataset = _load_runs(folder, data, fhnn_only=True)
+    models = [r.state.best_model for r in runs]
     truth = None if dataset.imported else dataset.equations()
     rows = ensemble_intervals([m.eom for m in models], dataset, truth)
     written = [
@@ -1086,6 +1080,19 @@ def reproduce(
     )
     built = "report rebuilt" if summary.report_built else "nothing changed, report kept"
     stdout.print(f"{ran}, {built} in {summary.seconds:.0f} s: {out / 'index.html'}")
+
+
+def _load_runs(
+    run_dir: Path, data: Path | None, *, fhnn_only: bool = False
+) -> tuple[list[Path], list[Any], Any]:
+    """The folders and runs of the run in ``run_dir``, or of every member of the ensemble there,
+    and the data set to score them on (read once, as :func:`_load_run` finds it for the first)."""
+    from fhnn.training.ensemble import is_ensemble, member_folders
+    from fhnn.training.run import Run
+
+    folders = member_folders(run_dir) if is_ensemble(run_dir) else [run_dir]
+    first, dataset = _load_run(folders[0], data, fhnn_only=fhnn_only)
+    return folders, [first] + [Run.load(f) for f in folders[1:]], dataset
 
 
 def _load_run(run_dir: Path, data: Path | None, *, fhnn_only: bool = False) -> tuple[Any, Any]:
