@@ -97,3 +97,16 @@ def test_an_earlier_phase_cut_does_not_end_adam(tmp_path):
     state = run.train(ds, save=False)
     assert [r["step"] for r in state.history] == [2, 4] and state.step == 4 and run.finished
     assert state.stopped == earlier
+
+
+def test_the_validation_total_weighs_terms_as_training_does(tmp_path):
+    """The best model is chosen by the validation loss the training minimises: a term trained with
+    weight 0 (the derivative loss on data whose derivatives were estimated) is reported but left
+    out of ``total``, and the others enter with their weights."""
+    ds = small_dataset("solid_body_vortex", n_traj=4, duration=1.0)
+    model = Run.create(tmp_path / "run", ds, RunConfig(model=FHNNConfig(width=8))).skeleton()
+    both = Trainer(TrainConfig(), ds.train, ds.val).validate(model)
+    assert both["total"] == pytest.approx(both["deriv"] + both["step"], rel=1e-12)
+    weighted = Trainer(TrainConfig(w_deriv=0.0, w_step=2.5), ds.train, ds.val).validate(model)
+    assert weighted["deriv"] == both["deriv"] > 0
+    assert weighted["total"] == pytest.approx(2.5 * both["step"], rel=1e-12)

@@ -438,9 +438,12 @@ class Trainer:
         )
 
     def validate(self, model: AbstractModel) -> dict[str, float]:
-        """Loss terms on the validation windows, and ``total``: their unweighted data sum."""
-        terms = {k: float(v) for k, v in _validation_terms(model, self._val, self.scales).items()}
-        terms["total"] = sum(v for k, v in terms.items() if k not in REGULARIZERS)
+        """Loss terms on the validation windows, and ``total``: their data sum weighted as the
+        training loss weighs them (:func:`data_loss`), so a term trained with weight 0 — the
+        derivative loss against estimated derivatives — does not choose the best model."""
+        raw = _validation_terms(model, self._val, self.scales)
+        terms = {k: float(v) for k, v in raw.items()}
+        terms["total"] = float(data_loss(raw, self.config))
         return terms
 
     def run(
