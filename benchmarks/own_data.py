@@ -8,8 +8,9 @@ Every step is the command a user runs (in this process, through :func:`fhnn.cli.
 the scoring reads the simulator's truth:
 
 - import: wall time, the noise level it sees, the velocity estimate's RMS error;
-- coefficients (masses, c_l; c_q per σ band with the share of quadratic drag) and flow against
-  the truth over the covered region (σ in the true flow), as ``fhnn inspect`` scores simulated data;
+- coefficients (masses, c_l; c_q per σ band with the share of quadratic drag), the total drag
+  ``½ρA c_q σ + c_l`` (overall and per σ band) and flow against the truth over the covered region
+  (σ in the true flow), as ``fhnn inspect`` scores simulated data;
 - RMSE(pos) at 1 s and 5 s of rollouts of the held-out (test) trajectories from their first
   imported state (observed position, estimated velocity), against the clean truth and against the
   noisy observations;
@@ -388,9 +389,11 @@ def main() -> None:
                 "sigma": [b["sigma_lo"], b["sigma_hi"]],
                 "quadratic_share": b["quadratic_share"],
                 "c_q": b["c_q"],
+                "drag": b["drag"],
             }
             for b in coef["_by_sigma"]
         ],
+        "drag_mean_rel": coef["_drag"]["mean_rel"],
         "flow_rel_l2": flow["rel_l2"],
         "test_rollouts": errors,
         "test_forecasts": forecasts,
@@ -418,6 +421,15 @@ def main() -> None:
         "ratios mean rel. error: "
         + ", ".join(f"{k} {v:.2%}" for k, v in result["ratios_mean_rel"].items())
         + f"; inspect says masses not identifiable: {result['inspect_says_not_identifiable']}"
+    )
+    print(
+        f"total drag ½ρA c_q σ + c_l mean rel. error {result['drag_mean_rel']:.2%}; per σ band "
+        "(σ range: quadratic share of the drag, max error of c_q, of the total drag): "
+        + ", ".join(
+            f"{b['sigma'][0]:.3f}–{b['sigma'][1]:.3f} m/s: {b['quadratic_share']:.0%}, {b['c_q']:.1%}, "
+            f"{b['drag']:.1%}"
+            for b in result["c_q_by_sigma"]
+        )
     )
     print(
         f"test RMSE(pos) at 5 s vs truth {errors['5']['imported_start']['rmse_pos_vs_truth']:.2e} m "

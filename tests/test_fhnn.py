@@ -263,6 +263,20 @@ def test_recovery_shows_a_drag_equivalent_split_per_sigma_band(data):
         assert band["m_ax"] == 0.0 and band["c_l"] == pytest.approx(delta / 3.0, rel=1e-12)
     # the error falls with σ: the first band holds the worst point
     assert coef["_by_sigma"][0]["c_q"] == pytest.approx(rel_cq.max(), rel=1e-9)
+    # the total drag ½ρA c_q σ + c_l is unchanged by the split: what the data determine is exact
+    assert coef["_drag"]["max_rel"] < 1e-13 and all(b["drag"] < 1e-13 for b in coef["_by_sigma"])
+
+    # a wrong total drag shows there: c_l − δ alone is δ/(½ρA c_q σ + c_l) off at each point
+    class Lowered(AbstractCoefficients):
+        inner: AbstractCoefficients
+
+        def __call__(self, r, sigma):
+            return self.inner(r, sigma).at[3].add(-delta)
+
+    wrong = coefficient_recovery(Lowered(truth.coefficients), data)
+    drag = 3.0 + half_rho_a * want[:, 2] * points[:, 1]
+    assert wrong["_drag"]["mean_rel"] == pytest.approx(np.mean(delta / drag), rel=1e-9)
+    assert wrong["_by_sigma"][0]["drag"] == pytest.approx(np.max(delta / drag), rel=1e-9)
 
 
 def test_cli_train_evaluate_inspect(data, tmp_path, capsys):

@@ -68,9 +68,11 @@ def drag_ratios(coefficients: np.ndarray, mass: float) -> np.ndarray:
 
 def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dict[str, Any]:
     """Per coefficient: ``mean_rel``, ``max_rel`` error and the ranges of learned and true values;
-    ``_coverage``: the (r, σ) ranges [m, m/s]; ``_by_sigma``: per σ band (quantiles
-    :data:`SIGMA_BANDS` of the visited σ) its bounds [m/s], number of points, the true quadratic
-    share of the drag and each coefficient's maximum relative error."""
+    ``_coverage``: the (r, σ) ranges [m, m/s]; ``_drag``: the same errors of the total drag
+    coefficient ``½ρA c_q σ + c_l`` [N·s/m] (the data determine it even where they cannot split
+    it between ``c_q`` and ``c_l``); ``_by_sigma``: per σ band (quantiles :data:`SIGMA_BANDS` of
+    the visited σ) its bounds [m/s], number of points, the true quadratic share of the drag, each
+    coefficient's and (``drag``) the total drag's maximum relative error."""
     truth_eom = dataset.equations()
     points = visited_r_sigma(truth_eom, dataset)
     got = np.asarray(coefficients_at(learned, jnp.asarray(points)))
@@ -88,7 +90,14 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
             "true_max": float(want[:, i].max()),
         }
     out["_coverage"] = _coverage(points)
-    out["_by_sigma"] = _by_sigma(points, want, dataset, lambda inside: rel_all[inside].max(axis=0))
+    # the total drag coefficient, what the data pin down even where they cannot split it
+    k = 0.5 * dataset.constants()["rho"] * dataset.constants()["A"]
+    drag_got, drag_want = (c[:, 3] + k * c[:, 2] * points[:, 1] for c in (got, want))
+    rel_drag = np.abs(drag_got - drag_want) / np.maximum(np.abs(drag_want), 1e-12)
+    out["_drag"] = {"mean_rel": float(rel_drag.mean()), "max_rel": float(rel_drag.max())}
+    out["_by_sigma"] = _by_sigma(
+        points, want, dataset, lambda inside: rel_all[inside].max(axis=0), extra={"drag": rel_drag}
+    )
     mass = dataset.constants()["M"]
     got_r, want_r = drag_ratios(got, mass), drag_ratios(want, mass)
     rel_r = np.abs(got_r - want_r) / np.maximum(np.abs(want_r), 1e-300)
@@ -114,11 +123,12 @@ def _by_sigma(
     coefficients: np.ndarray,
     dataset: Dataset,
     per_band: Callable[[np.ndarray], np.ndarray],
+    extra: dict[str, np.ndarray] | None = None,
 ) -> list[dict[str, Any]]:
     """Per band of σ (quantiles :data:`SIGMA_BANDS` of the visited σ): its bounds [m/s], number of
     points, the share ``½ρA c_q σ / (½ρA c_q σ + c_l)`` of the quadratic term in the drag of
-    ``coefficients`` ``(P, 4)`` there, and ``per_band(inside)`` (one value per coefficient) for
-    the points ``inside`` it."""
+    ``coefficients`` ``(P, 4)`` there, ``per_band(inside)`` (one value per coefficient) for
+    the points ``inside`` it, and for each ``extra`` name its per-point values' maximum there."""
     sigma = points[:, 1]
     body = dataset.constants()
     quad = 0.5 * body["rho"] * body["A"] * coefficients[:, 2] * sigma
@@ -137,6 +147,7 @@ def _by_sigma(
                 "points": int(inside.sum()),
                 "quadratic_share": float(share[inside].mean()),
                 **dict(zip(COEFFICIENT_NAMES, np.asarray(per_band(inside)).tolist(), strict=True)),
+                **{name: float(values[inside].max()) for name, values in (extra or {}).items()},
             }
         )
     return out
