@@ -19,6 +19,7 @@ from fhnn.data.dataset import Split, read_dataset, write_dataset
 from fhnn.data.derivatives import lagrange_residuals, noise_level, rts_smooth, smooth_derivatives
 from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_table
 from fhnn.data.windows import Windows
+from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_metrics
 from fhnn.evaluation.predict import estimate_states, forecast
 from fhnn.evaluation.recovery import RATIO_NAMES, coefficient_recovery, drag_ratios
@@ -28,6 +29,7 @@ from fhnn.physics.actuation import actuation_force, forcing
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import rk4_step
 from fhnn.training.run import Run
+from fhnn.training.trainer import TrainConfig, Trainer
 
 from .conftest import small_dataset
 
@@ -240,9 +242,10 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().err.split())
     assert "velocities and derivatives were estimated, not measured: training with" in said
-    assert "train.w_deriv=0.0, train.w_step=0.0, train.batch_size=32 (--set wins)" in said
+    assert "train.w_deriv=0.0, train.w_step=0.0, train.batch_size=32, train.shoot_skip=5 (--set wins)" in said
     config = Run.load(run).train_config
     assert (config.shoot, config.w_deriv, config.w_step, config.batch_size) == (8, 0.0, 0.0, 32)
+    assert (config.shoot_skip, config.lbfgs_steps) == (5, 0)
     for args in (["evaluate", str(run), "--horizons", "1,3", "--json"], ["inspect", str(run)]):
         with pytest.raises(SystemExit) as info:
             main(args)
@@ -313,6 +316,33 @@ def test_read_table_groups_shuffled_rows_by_trajectory_in_time_order(imported) -
         np.testing.assert_array_equal(tr.t, table["t"][rows][order])
         np.testing.assert_array_equal(tr.pos[:, 1], table["y"][rows][order])
         assert tr.vel is None and tr.force.shape == (rows.sum(), 2)
+
+
+def test_windows_can_skip_each_trajectorys_first_samples_and_tile_it(fine, rng) -> None:
+    """``skip``: no window starts before that sample of its trajectory (where a smoother's velocity
+    sees one side only), and ``start`` names the sample each window starts at; the quasi-Newton
+    pool (``train.lbfgs_stride``) keeps the windows every ``stride`` samples from there."""
+    split = _ragged(fine.train, rng)
+    every, skipped = Windows.of(split, 6), Windows.of(split, 6, skip=4)
+    assert len(every) == int(np.sum(split.sample_counts - 5))
+    assert len(skipped) == int(np.sum(np.maximum(split.sample_counts - 5 - 4, 0)))
+    assert skipped.start.min() == 4 and every.start.min() == 0
+    for p in range(0, len(skipped), 37):
+        i, k = skipped.traj[p], skipped.start[p]
+        np.testing.assert_array_equal(skipped.s[p], split.states[i, k : k + 6])
+    assert "start" not in skipped.as_jax()
+    with pytest.raises(ConfigError, match="no trajectory has a window of 6 samples starting at sample 999"):
+        Windows.of(split, 6, skip=999)
+    config = TrainConfig(shoot=6, shoot_skip=4, lbfgs_stride=5, lbfgs_pairs=10**6, w_deriv=0.0)
+    trainer = Trainer(config, split, split, window=6)
+    assert trainer.val_pairs.start.min() == 4
+    pool = trainer.quasi_newton_windows()
+    # consecutive windows of the pool share their end samples: together they tile each trajectory
+    for i in np.unique(pool.traj):
+        starts = pool.start[pool.traj == i]
+        np.testing.assert_array_equal(starts, 4 + 5 * np.arange(starts.size))
+    with pytest.raises(ConfigError, match="lbfgs_stride"):
+        TrainConfig(lbfgs_stride=0)
 
 
 def test_multi_step_loss_rolls_rk4_through_each_windows_own_times(fine, rng) -> None:

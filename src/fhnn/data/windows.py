@@ -27,7 +27,8 @@ class Windows:
     Shapes: ``s``, ``deriv`` ``(P, W, 4)``; ``t`` ``(P, W)``; ``forces`` ``(P, W, 2)`` (recorded);
     ``act`` ``(P, 2, 3, 3)``; ``traj`` ``(P,)`` (index of the trajectory in its split); ``dforce``
     ``(P, W, 2)``: the recorded forces less the sinusoids of ``act``
-    (:attr:`~fhnn.data.dataset.Split.force_residual`). ``W = 2`` gives transition pairs.
+    (:attr:`~fhnn.data.dataset.Split.force_residual`); ``start`` ``(P,)``: the sample of its
+    trajectory each window starts at (not passed to a model). ``W = 2`` gives transition pairs.
     """
 
     s: np.ndarray
@@ -37,13 +38,17 @@ class Windows:
     act: np.ndarray
     traj: np.ndarray
     dforce: np.ndarray
+    start: np.ndarray
 
-    FIELDS = ("s", "t", "deriv", "forces", "act", "traj", "dforce")
+    FIELDS = ("s", "t", "deriv", "forces", "act", "traj", "dforce", "start")
+    #: The fields a model's loss reads (:meth:`as_jax`).
+    BATCH_FIELDS = FIELDS[:-1]
 
     @classmethod
-    def of(cls, split: Split, window: int = 2) -> Windows:
-        """Every window of ``window`` consecutive real samples (padding never enters one); on
-        irregularly sampled data each window carries its own times."""
+    def of(cls, split: Split, window: int = 2, *, skip: int = 0) -> Windows:
+        """Every window of ``window`` consecutive real samples (padding never enters one) that
+        starts at sample ``skip`` of its trajectory or later; on irregularly sampled data each
+        window carries its own times."""
         n, T = split.n_traj, split.n_times
         counts = split.sample_counts
         if counts.min() < window:
@@ -52,7 +57,13 @@ class Windows:
             )
         starts = np.arange(T - window + 1)
         idx = starts[:, None] + np.arange(window)[None, :]  # (K, W)
-        keep = (starts[None, :] + window <= counts[:, None]).reshape(-1)  # (N·K,): inside each trajectory
+        inside = starts[None, :] + window <= counts[:, None]  # (N, K): inside each trajectory
+        keep = (inside & (starts[None, :] >= skip)).reshape(-1)
+        if not keep.any():
+            raise ConfigError(
+                f"no trajectory has a window of {window} samples starting at sample {skip} or later "
+                f"(the longest has {counts.max()} samples)"
+            )
 
         def cut(a: np.ndarray) -> np.ndarray:
             return a[:, idx].reshape(-1, window, *a.shape[2:])[keep]
@@ -65,6 +76,7 @@ class Windows:
             act=np.repeat(split.actuation, starts.size, axis=0)[keep],
             traj=np.repeat(np.arange(n), starts.size)[keep],
             dforce=cut(split.force_residual),
+            start=np.tile(starts, n)[keep],
         )
 
     def __len__(self) -> int:
@@ -74,7 +86,7 @@ class Windows:
         return Windows(*(getattr(self, k)[idx] for k in self.FIELDS))
 
     def as_jax(self) -> dict[str, Array]:
-        return {k: jnp.asarray(getattr(self, k)) for k in self.FIELDS}
+        return {k: jnp.asarray(getattr(self, k)) for k in self.BATCH_FIELDS}
 
 
 @dataclass(frozen=True)

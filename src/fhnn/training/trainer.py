@@ -26,11 +26,11 @@ Three phases:
 3. Polish (``lbfgs_steps`` quasi-Newton iterations, all parameters) from the best model so far: in
    float64 it lowers the loss far below Adam's noise floor.
 
-The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` pairs (derivative and
-step losses only) with L-BFGS keeping ``lbfgs_memory`` curvature pairs (100 by default: on the
-solid_body_vortex warm-up, 10 pairs left the validation loss at 5.9e-7 after 300 iterations,
-100 pairs reached 1.2e-7). They are deterministic; a run interrupted inside one restarts that
-phase from the last checkpoint.
+The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` windows (the data
+terms, no regulariser), drawn from those starting every ``lbfgs_stride`` samples, with L-BFGS
+keeping ``lbfgs_memory`` curvature pairs (100 by default: on the solid_body_vortex warm-up, 10
+pairs left the validation loss at 5.9e-7 after 300 iterations, 100 pairs reached 1.2e-7). They
+are deterministic; a run interrupted inside one restarts that phase from the last checkpoint.
 """
 
 from __future__ import annotations
@@ -83,6 +83,15 @@ class TrainConfig(Config):
             loss that needs neither measured velocities nor derivatives (``fhnn train`` turns it
             on for data whose velocities were estimated).
         w_shoot: weight of the multi-step loss.
+        shoot_skip: the multi-step windows start at this sample of a trajectory or later (on
+            both splits): a smoother's velocity estimate at a trajectory's first samples sees one
+            side of it only and is several times worse than inside (issue 14's data: 15, 9.8,
+            6.7, 4.5 mm/s at samples 0–3 and 1.5 mm/s inside), and a window's prediction starts
+            from it.
+        lbfgs_stride: the quasi-Newton phases draw their ``lbfgs_pairs`` examples from the
+            windows starting every ``lbfgs_stride`` samples (from ``shoot_skip``); with the
+            multi-step loss, ``shoot − 1`` tiles each trajectory with windows that share only
+            their end samples, so every interval of the data enters the polish once.
         warmup_accept: what the warm-up's validation loss decides (0: nothing — Adam always
             follows the warm-up). Above 0, a warm-up whose validation loss is at or below it is
             kept and the Adam phase is skipped (the polish starts from the warm-up: the linear
@@ -123,12 +132,15 @@ class TrainConfig(Config):
     stop_rising: int = 6
     shoot: int = 0
     w_shoot: float = 1.0
+    shoot_skip: int = 0
+    lbfgs_stride: int = 1
 
     def validate(self) -> None:
         check_positive(self, "batch_size", "lr", "lr_decay", "val_every", "val_pairs", "lbfgs_pairs")
         check_positive(self, "lbfgs_memory")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
-        check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot")
+        check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot", "shoot_skip")
+        check_positive(self, "lbfgs_stride")
         check_nonnegative(self, "warmup_accept", "max_time")
         if self.shoot == 1:
             raise ConfigError("training: shoot must be 0 (off) or at least 2 samples, got 1")
@@ -255,8 +267,9 @@ class Trainer:
         self._told = -1.0
         #: When this trainer was made: the start of ``config.max_time`` (see :meth:`deadline`).
         self.started = time.monotonic()
-        self.train_pairs = Windows.of(train, window)
-        val_pairs = Windows.of(val, window)
+        skip = config.shoot_skip if config.shoot >= 3 else 0
+        self.train_pairs = Windows.of(train, window, skip=skip)
+        val_pairs = Windows.of(val, window, skip=skip)
         if len(val_pairs) > config.val_pairs:
             idx = np.random.default_rng(config.seed).choice(len(val_pairs), config.val_pairs, replace=False)
             val_pairs = val_pairs.subset(np.sort(idx))
@@ -340,6 +353,17 @@ class Trainer:
         """Quasi-Newton on all parameters from the best model so far."""
         return self._quasi_newton(state, state.best_model, self.config.lbfgs_steps, "lbfgs", callback)
 
+    def quasi_newton_windows(self) -> Windows:
+        """The training windows of the quasi-Newton phases: a seeded subset of ``lbfgs_pairs`` of
+        those starting every ``lbfgs_stride`` samples from the first allowed start (all of them
+        where fewer), in their original order."""
+        cfg = self.config
+        skip = cfg.shoot_skip if cfg.shoot >= 3 else 0
+        pool = np.flatnonzero((self.train_pairs.start - skip) % cfg.lbfgs_stride == 0)
+        n = min(cfg.lbfgs_pairs, pool.size)
+        idx = pool[np.sort(np.random.default_rng(cfg.seed + 2).choice(pool.size, n, replace=False))]
+        return self.train_pairs.subset(idx)
+
     def _quasi_newton(
         self,
         state: TrainState,
@@ -356,9 +380,7 @@ class Trainer:
         step 0; "lbfgs": at the steps after Adam's). ``give_up(record)`` true at a record, or the
         phase's time budget spent (:meth:`deadline`), ends the phase there."""
         cfg = self.config
-        n = min(cfg.lbfgs_pairs, len(self.train_pairs))
-        idx = np.sort(np.random.default_rng(cfg.seed + 2).choice(len(self.train_pairs), n, replace=False))
-        batch = {**self.train_pairs.subset(idx).as_jax(), "key": jax.random.PRNGKey(cfg.seed + 4)}
+        batch = {**self.quasi_newton_windows().as_jax(), "key": jax.random.PRNGKey(cfg.seed + 4)}
         params, static = eqx.partition(start, eqx.is_array)
         scales = self.scales
 
