@@ -40,9 +40,9 @@ class Windows:
     dforce: np.ndarray
     start: np.ndarray
 
-    FIELDS = ("s", "t", "deriv", "forces", "act", "traj", "dforce", "start")
     #: The fields a model's loss reads (:meth:`as_jax`).
-    BATCH_FIELDS = FIELDS[:-1]
+    BATCH_FIELDS = ("s", "t", "deriv", "forces", "act", "traj", "dforce")
+    FIELDS = (*BATCH_FIELDS, "start")
 
     @classmethod
     def of(cls, split: Split, window: int = 2, *, skip: int = 0) -> Windows:

@@ -91,14 +91,14 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
         }
     out["_coverage"] = _coverage(points)
     # the total drag coefficient, what the data pin down even where they cannot split it
-    k = 0.5 * dataset.constants()["rho"] * dataset.constants()["A"]
-    drag_got, drag_want = (c[:, 3] + k * c[:, 2] * points[:, 1] for c in (got, want))
+    body = dataset.constants()
+    drag_got, drag_want = (_drag(c, points[:, 1], body)[1] for c in (got, want))
     rel_drag = np.abs(drag_got - drag_want) / np.maximum(np.abs(drag_want), 1e-12)
     out["_drag"] = {"mean_rel": float(rel_drag.mean()), "max_rel": float(rel_drag.max())}
     out["_by_sigma"] = _by_sigma(
         points, want, dataset, lambda inside: rel_all[inside].max(axis=0), extra={"drag": rel_drag}
     )
-    mass = dataset.constants()["M"]
+    mass = body["M"]
     got_r, want_r = drag_ratios(got, mass), drag_ratios(want, mass)
     rel_r = np.abs(got_r - want_r) / np.maximum(np.abs(want_r), 1e-300)
     out["_ratios"] = {
@@ -106,6 +106,16 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
         for i, name in enumerate(RATIO_NAMES)
     }
     return out
+
+
+def _drag(
+    coefficients: np.ndarray, sigma: np.ndarray, body: dict[str, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The quadratic term ``½ρA c_q σ`` and the total drag coefficient ``½ρA c_q σ + c_l``
+    [N·s/m] of ``coefficients`` ``(P, 4)`` at the relative speeds ``sigma`` ``(P,)`` [m/s], for the
+    body constants ``body`` (``rho``, ``A``)."""
+    quad = 0.5 * body["rho"] * body["A"] * coefficients[:, 2] * sigma
+    return quad, quad + coefficients[:, 3]
 
 
 def _coverage(points: np.ndarray) -> dict[str, float]:
@@ -130,9 +140,8 @@ def _by_sigma(
     ``coefficients`` ``(P, 4)`` there, ``per_band(inside)`` (one value per coefficient) for
     the points ``inside`` it, and for each ``extra`` name its per-point values' maximum there."""
     sigma = points[:, 1]
-    body = dataset.constants()
-    quad = 0.5 * body["rho"] * body["A"] * coefficients[:, 2] * sigma
-    share = quad / np.maximum(quad + coefficients[:, 3], 1e-300)
+    quad, drag = _drag(coefficients, sigma, dataset.constants())
+    share = quad / np.maximum(drag, 1e-300)
     edges = np.quantile(sigma, SIGMA_BANDS)
     band = np.clip(np.searchsorted(edges, sigma, side="right") - 1, 0, len(edges) - 2)
     out = []

@@ -147,6 +147,12 @@ class TrainConfig(Config):
         if any(not 0 < b < 1 for b in self.lr_boundaries):
             raise ConfigError(f"training: lr_boundaries must lie in (0, 1), got {self.lr_boundaries}")
 
+    @property
+    def first_start(self) -> int:
+        """The first sample of a trajectory a training window may start at: ``shoot_skip`` with
+        the multi-step loss (``shoot ≥ 3``), else 0."""
+        return self.shoot_skip if self.shoot >= 3 else 0
+
     def schedule(self) -> optax.Schedule:
         bounds = {int(b * self.steps): self.lr_decay for b in self.lr_boundaries}
         return optax.piecewise_constant_schedule(self.lr, bounds)
@@ -267,9 +273,8 @@ class Trainer:
         self._told = -1.0
         #: When this trainer was made: the start of ``config.max_time`` (see :meth:`deadline`).
         self.started = time.monotonic()
-        skip = config.shoot_skip if config.shoot >= 3 else 0
-        self.train_pairs = Windows.of(train, window, skip=skip)
-        val_pairs = Windows.of(val, window, skip=skip)
+        self.train_pairs = Windows.of(train, window, skip=config.first_start)
+        val_pairs = Windows.of(val, window, skip=config.first_start)
         if len(val_pairs) > config.val_pairs:
             idx = np.random.default_rng(config.seed).choice(len(val_pairs), config.val_pairs, replace=False)
             val_pairs = val_pairs.subset(np.sort(idx))
@@ -358,8 +363,7 @@ class Trainer:
         those starting every ``lbfgs_stride`` samples from the first allowed start (all of them
         where fewer), in their original order."""
         cfg = self.config
-        skip = cfg.shoot_skip if cfg.shoot >= 3 else 0
-        pool = np.flatnonzero((self.train_pairs.start - skip) % cfg.lbfgs_stride == 0)
+        pool = np.flatnonzero((self.train_pairs.start - cfg.first_start) % cfg.lbfgs_stride == 0)
         n = min(cfg.lbfgs_pairs, pool.size)
         idx = pool[np.sort(np.random.default_rng(cfg.seed + 2).choice(pool.size, n, replace=False))]
         return self.train_pairs.subset(idx)
