@@ -290,7 +290,14 @@ def _results(out: Path) -> dict[str, bytes]:
             data = path.read_bytes()
             if path.name in ("result.json", "timings.json"):
                 info = json.loads(data)
-                for key in ("train_seconds", "eval_seconds", "job_seconds_total", "mean_job_seconds"):
+                for key in (
+                    "train_seconds",
+                    "eval_seconds",
+                    "job_seconds_total",
+                    "mean_job_seconds",
+                    "mean_train_seconds",
+                    "mean_eval_seconds",
+                ):
                     info.pop(key, None)
                 info.pop("wall_seconds_this_run", None)
                 data = json.dumps(info, sort_keys=True).encode()

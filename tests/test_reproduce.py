@@ -47,6 +47,21 @@ def test_default_grid_covers_every_table_without_repeats() -> None:
     assert {j.seed for j in jobs} == {0, 1, 2}
 
 
+def test_every_job_trains_with_the_default_plan_under_one_budget() -> None:
+    """The reproduction trains as ``fhnn train`` does (the default plan's phases, its FHNN width,
+    also for the ablations) with fewer Adam steps and a wall-clock budget per job."""
+    from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_SECONDS
+    from fhnn.training.plans import DEFAULT_PLAN, PLANS
+
+    config, plan = ReproduceConfig(), PLANS[DEFAULT_PLAN]
+    assert config.train.max_time == JOB_SECONDS > 0 and config.train.steps == JOB_ADAM_STEPS
+    assert config.train.replace(steps=plan.train.steps, max_time=plan.train.max_time) == plan.train
+    assert config.model.fhnn.width == plan.model["fhnn"]["width"] != type(config.model.fhnn)().width
+    fhnn_jobs = [j for j in build_grid(config)[1] if j.model == "fhnn"]
+    assert {j.run.model.width for j in fhnn_jobs} == {plan.model["fhnn"]["width"]}
+    assert {j.run.train.replace(seed=0) for j in build_grid(config)[1]} == {config.train}
+
+
 def test_job_ids_change_with_what_determines_the_result_only() -> None:
     _, a = build_grid(ReproduceConfig(seeds=1))
     _, b = build_grid(ReproduceConfig(seeds=1))

@@ -80,6 +80,41 @@ def test_the_time_budget_ends_each_phase_and_says_so(tmp_path):
     assert state.stopped is None and [r["step"] for r in state.history][-1] == 55
 
 
+def test_a_discarded_warmup_leaves_adam_and_the_polish_what_is_left(tmp_path):
+    """The time of a discarded warm-up is sunk: Adam and the polish split what is left of the
+    budget in the usual shares (half before the polish), counted from the discard; a kept warm-up
+    changes nothing. The trainer's clock is set back 800 s of a 1,000 s budget."""
+    import time
+
+    ds = small_dataset("solid_body_vortex", n_traj=4, duration=1.0)
+    model = Run.create(tmp_path / "run", ds, RunConfig(model=FHNNConfig(width=8))).skeleton()
+
+    def trainer(accept):
+        config = TrainConfig(
+            warmup_steps=2, warmup_accept=accept, lbfgs_steps=5, lbfgs_pairs=64, max_time=1000.0
+        )
+        t = Trainer(config, ds.train, ds.val)
+        t.started -= 800.0
+        t._budget = (t.started, 1000.0)
+
+        def quasi_newton(state, *args, **kwargs):  # the warm-up's iterations: one record at loss 1
+            state.history.append({"phase": "warmup", "iteration": 2, "val_total": 1.0})
+            return state
+
+        t._quasi_newton = quasi_newton
+        return t
+
+    t = trainer(0.5)  # the warm-up's loss 1 is above it: discarded
+    assert t.warmup(t.init(model)).history[-1]["warmup"] == "discarded"
+    left = 1000.0 - (time.monotonic() - t.started)  # ~200 s, less the warm-up's own time
+    assert 0 < t.deadline("adam") - time.monotonic() <= 0.5 * left + 0.5
+    assert t.deadline("adam") - time.monotonic() > 0.5 * left - 1.0
+    assert abs((t.deadline("lbfgs") - t.deadline("adam")) - (t.deadline("adam") - t._budget[0])) < 1e-9
+    kept = trainer(2.0)
+    assert kept.warmup(kept.init(model)).history[-1]["warmup"] == "kept"
+    assert kept.deadline("adam") == kept.started + 500.0 and kept.deadline("lbfgs") == kept.started + 1000.0
+
+
 def test_an_earlier_phase_cut_does_not_end_adam(tmp_path):
     """A run whose warm-up the budget cut in an earlier process resumes with a new budget: its
     stored ``stopped`` text must not end Adam at its first validation (only a cut of this phase

@@ -1022,7 +1022,13 @@ def reproduce(
         ),
     ] = False,
     seeds: Annotated[int | None, typer.Option(help="Seeds per model [default: 3; --quick: 1].")] = None,
-    steps: Annotated[int | None, typer.Option(help="Adam steps per model [default: 1500].")] = None,
+    steps: Annotated[
+        int | None,
+        typer.Option(
+            help="Adam steps per model [default: 1500, with the default plan's warm-up and polish and "
+            "60 s per job (train.max_time); --quick: 80, Adam only]."
+        ),
+    ] = None,
     workers: Annotated[
         int | None, typer.Option(help="Local worker processes [default: one per CPU core].")
     ] = None,

@@ -36,6 +36,7 @@ from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import PAPER_SCENARIOS, SCENARIOS
 from fhnn.runtime import source_digest
+from fhnn.training.plans import DEFAULT_PLAN, PLANS
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import TrainConfig
 
@@ -92,6 +93,31 @@ def _model_options() -> type[Config]:
 
 ModelOptions = _model_options()
 
+#: Wall-clock budget [s] of every gradient-trained job's training (``train.max_time``): the full
+#: grid's 81 such jobs, evaluation and compilation included, fit in an hour on 2 workers.
+JOB_SECONDS = 60.0
+#: Adam steps of the reproduction: the default plan's 12,000 take ~170 s on FHNN, far past the
+#: budget; the learning rate decays on the step count, so the steps are sized to end inside the
+#: share of the budget the phases before the polish get (~9 ms a step at width 32, one core).
+JOB_ADAM_STEPS = 1500
+
+
+def reproduction_train() -> TrainConfig:
+    """The training of every gradient-trained job: the default plan's phases (warm-up where a
+    model has warm-up parameters, kept or discarded on its validation loss; Adam; L-BFGS polish
+    on the plan's pairs) with :data:`JOB_ADAM_STEPS` Adam steps and :data:`JOB_SECONDS` per job,
+    the polish getting what the earlier phases leave (``train.max_time``)."""
+    return PLANS[DEFAULT_PLAN].train.replace(steps=JOB_ADAM_STEPS, max_time=JOB_SECONDS)
+
+
+def reproduction_models() -> Config:
+    """Each model kind's configuration in the reproduction: its defaults with the default plan's
+    model settings (FHNN width 32), so the ablations share FHNN's architecture."""
+    plan = PLANS[DEFAULT_PLAN]
+    return ModelOptions.from_dict(
+        {kind: MODELS[kind].config().replace(**plan.model.get(kind, {})).to_dict() for kind in MODELS}
+    )
+
 
 @frozen_config
 class ReproduceConfig(Config):
@@ -106,9 +132,11 @@ class ReproduceConfig(Config):
         scenario_table: scenarios of T4.
         identifiability: add ``steady_vortex`` without actuation to T6.
         data: the simulated data sets (:class:`DataSettings`).
-        train: the training of every gradient-trained model — the same budget for all
-            (:class:`~fhnn.training.trainer.TrainConfig`; its seed is set per job).
-        model: each model kind's configuration (``ModelOptions``).
+        train: the training of every gradient-trained model — the same plan and wall-clock
+            budget for all (:class:`~fhnn.training.trainer.TrainConfig`, default
+            :func:`reproduction_train`; its seed is set per job).
+        model: each model kind's configuration (``ModelOptions``, default
+            :func:`reproduction_models`).
     """
 
     config_name = "reproduce"
@@ -120,8 +148,8 @@ class ReproduceConfig(Config):
     scenario_table: tuple[str, ...] = PAPER_SCENARIOS
     identifiability: bool = True
     data: DataSettings = DataSettings()
-    train: TrainConfig = TrainConfig(steps=1500)
-    model: ModelOptions = dataclasses.field(default_factory=ModelOptions)  # type: ignore[valid-type]
+    train: TrainConfig = dataclasses.field(default_factory=reproduction_train)
+    model: ModelOptions = dataclasses.field(default_factory=reproduction_models)  # type: ignore[valid-type]
 
     def validate(self) -> None:
         check_positive(self, "seeds")

@@ -151,16 +151,19 @@ def _curve(results: list[dict], metric: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _timings(jobs: list[ModelJob], results: dict[str, dict]) -> dict[str, Any]:
-    per_model: dict[str, list[float]] = {}
+    per_model: dict[str, list[tuple[float, float]]] = {}
     for j in jobs:
         r = results[j.id]
-        per_model.setdefault(j.variant, []).append(r["train_seconds"] + r["eval_seconds"])
+        per_model.setdefault(j.variant, []).append((r["train_seconds"], r["eval_seconds"]))
     return {
         "jobs": len(jobs),
-        "job_seconds_total": float(sum(sum(v) for v in per_model.values())),
-        "mean_job_seconds": {k: float(np.mean(v)) for k, v in per_model.items()},
-        # jobs a training guard ended before their plan did (TrainConfig.stop_rising): their best
-        # model is what the tables score
+        "job_seconds_total": float(sum(np.sum(v) for v in per_model.values())),
+        "mean_job_seconds": {k: float(np.sum(v) / len(v)) for k, v in per_model.items()},
+        # what each model got: its training time (the same budget for all) and its evaluation's
+        "mean_train_seconds": {k: float(np.mean([t for t, _ in v])) for k, v in per_model.items()},
+        "mean_eval_seconds": {k: float(np.mean([e for _, e in v])) for k, v in per_model.items()},
+        # jobs a training guard (TrainConfig.stop_rising) or the time budget (max_time) ended before
+        # their plan did: their best model is what the tables score
         "stopped_early": {
             j.label: f"step {results[j.id]['steps']}: {results[j.id]['stopped']}"
             for j in jobs
@@ -206,7 +209,12 @@ def _plan_text(train: TrainConfig) -> str:
         f"{train.steps} Adam steps" if train.steps else "",
         f"{train.lbfgs_steps} L-BFGS polish" if train.lbfgs_steps else "",
     ]
-    return " + ".join(p for p in phases if p) or "no training steps"
+    text = " + ".join(p for p in phases if p) or "no training steps"
+    if train.warmup_steps and train.warmup_accept > 0:
+        text += f" (the warm-up kept, and Adam skipped, at validation loss <= {train.warmup_accept:g})"
+    if train.max_time > 0:
+        text += f", at most {train.max_time:g} s of training per job"
+    return text
 
 
 def _markdown(
@@ -224,7 +232,11 @@ def _markdown(
     lines += ["", "## Configuration", "", "```json", json.dumps(config.to_dict(), indent=1), "```", ""]
     lines += ["## Versions", ""] + [f"- {k}: {v}" for k, v in versions.items()]
     lines += ["", "## Mean time per job [s] (train + evaluate)", ""]
-    lines += [f"- {MODEL_NAMES.get(k, k)}: {v:.1f}" for k, v in timings["mean_job_seconds"].items()]
+    lines += [
+        f"- {MODEL_NAMES.get(k, k)}: {v:.1f} ({timings['mean_train_seconds'][k]:.1f} + "
+        f"{timings['mean_eval_seconds'][k]:.1f})"
+        for k, v in timings["mean_job_seconds"].items()
+    ]
     lines += ["", "## Jobs stopped early (their best model is scored)", ""]
     lines += [f"- {k}: {v}" for k, v in timings["stopped_early"].items()] or ["- none"]
     return "\n".join(lines) + "\n"
@@ -288,7 +300,8 @@ def _html(
     parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in versions.items()]
     parts.append("</table><h2>Mean time per job (train + evaluate)</h2><table>")
     parts += [
-        f"<tr><td>{e(MODEL_NAMES.get(k, k))}</td><td>{v:.1f} s</td></tr>"
+        f"<tr><td>{e(MODEL_NAMES.get(k, k))}</td><td>{v:.1f} s</td>"
+        f"<td>{timings['mean_train_seconds'][k]:.1f} s + {timings['mean_eval_seconds'][k]:.1f} s</td></tr>"
         for k, v in timings["mean_job_seconds"].items()
     ]
     parts.append("</table><h2>Jobs stopped early (their best model is scored)</h2><ul>")

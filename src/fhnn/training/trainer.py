@@ -273,6 +273,9 @@ class Trainer:
         self._told = -1.0
         #: When this trainer was made: the start of ``config.max_time`` (see :meth:`deadline`).
         self.started = time.monotonic()
+        #: The part of the budget the remaining phases share: (start, seconds); a discarded
+        #: warm-up restarts it with what is left (see :meth:`deadline`).
+        self._budget = (self.started, config.max_time)
         self.train_pairs = Windows.of(train, window, skip=config.first_start)
         val_pairs = Windows.of(val, window, skip=config.first_start)
         if len(val_pairs) > config.val_pairs:
@@ -292,12 +295,16 @@ class Trainer:
         (``time.monotonic()`` seconds; infinite without a budget). The budget counts from the
         trainer's creation (a resumed run starts a new one) and includes compilation. When a
         polish follows, the phases before it end at :data:`PRE_POLISH_SHARE` of the budget, so the
-        polish — from the best model so far — gets the rest; the polish ends at the budget."""
+        polish — from the best model so far — gets the rest; the polish ends at the budget. The
+        time of a discarded warm-up is sunk: Adam and the polish then split what is left in the
+        same shares (without it, a warm-up that took half the budget before being discarded left
+        Adam one step: ``steady_vortex`` at ``max_time=60``)."""
         cfg = self.config
         if cfg.max_time <= 0:
             return np.inf
         share = PRE_POLISH_SHARE if phase != "lbfgs" and cfg.lbfgs_steps > 0 else 1.0
-        return self.started + share * cfg.max_time
+        start, seconds = self._budget
+        return start + share * seconds
 
     def _over_budget(self, phase: str, step: int, of: int, what: str) -> str | None:
         """The ``stopped`` text when ``phase`` has run past its :meth:`deadline`, else ``None``."""
@@ -310,6 +317,9 @@ class Trainer:
             ""
             if phase == "lbfgs" or cfg.lbfgs_steps == 0
             else f", {PRE_POLISH_SHARE:.0%} of it before the polish"
+            if self._budget[0] == self.started
+            else f", {PRE_POLISH_SHARE:.0%} of the {self._budget[1]:.0f} s a discarded warm-up left "
+            "before the polish"
         )
         return (
             f"{what} stopped at {unit} {step} of {of}: the time budget "
@@ -344,6 +354,8 @@ class Trainer:
         if accept > 0 and not last["val_total"] <= accept:  # a NaN loss is discarded too
             last["warmup"] = "discarded"
             state.model, state.best_model, state.best_val = initial, initial, np.inf
+            now = time.monotonic()
+            self._budget = (now, max(0.0, self.config.max_time - (now - self.started)))
         else:
             state.best_model, state.best_val = state.model, last["val_total"]
             if accept > 0:
