@@ -145,3 +145,20 @@ def test_the_validation_total_weighs_terms_as_training_does(tmp_path):
     weighted = Trainer(TrainConfig(w_deriv=0.0, w_step=2.5), ds.train, ds.val).validate(model)
     assert weighted["deriv"] == both["deriv"] > 0
     assert weighted["total"] == pytest.approx(2.5 * both["step"], rel=1e-12)
+
+
+def test_a_programs_first_call_its_compilation_is_left_out_of_the_budget():
+    """The first call of each compiled program (named) moves the budget's start by its duration;
+    later calls, and the first of another name, are timed as usual — so what a job trains for does
+    not depend on whether its programs were in the compilation cache."""
+    import time
+
+    ds = small_dataset("steady_vortex", n_traj=4, duration=1.0)
+    t = Trainer(TrainConfig(max_time=100.0, lbfgs_steps=5), ds.train, ds.val)
+    start, adam = t.started, t.deadline("adam")
+    assert t._uncounted_first("adam", lambda x: x + 1, 1) == 2
+    t._uncounted_first("lbfgs", time.sleep, 0.2)
+    assert t.started - start >= 0.2 and t.deadline("adam") - adam == pytest.approx(t.started - start)
+    moved = t.started
+    t._uncounted_first("lbfgs", time.sleep, 0.2)
+    assert t.started == moved and t.deadline("lbfgs") == t.started + 100.0
