@@ -95,7 +95,6 @@ def test_a_discarded_warmup_leaves_adam_and_the_polish_what_is_left(tmp_path):
         )
         t = Trainer(config, ds.train, ds.val)
         t.started -= 800.0
-        t._budget = (t.started, 1000.0)
 
         def quasi_newton(state, *args, **kwargs):  # the warm-up's iterations: one record at loss 1
             state.history.append({"phase": "warmup", "iteration": 2, "val_total": 1.0})
@@ -109,7 +108,7 @@ def test_a_discarded_warmup_leaves_adam_and_the_polish_what_is_left(tmp_path):
     left = 1000.0 - (time.monotonic() - t.started)  # ~200 s, less the warm-up's own time
     assert 0 < t.deadline("adam") - time.monotonic() <= 0.5 * left + 0.5
     assert t.deadline("adam") - time.monotonic() > 0.5 * left - 1.0
-    assert abs((t.deadline("lbfgs") - t.deadline("adam")) - (t.deadline("adam") - t._budget[0])) < 1e-9
+    assert abs((t.deadline("lbfgs") - t.deadline("adam")) - (t.deadline("adam") - t.started - t._sunk)) < 1e-9
     kept = trainer(2.0)
     assert kept.warmup(kept.init(model)).history[-1]["warmup"] == "kept"
     assert kept.deadline("adam") == kept.started + 500.0 and kept.deadline("lbfgs") == kept.started + 1000.0

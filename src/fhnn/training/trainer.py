@@ -272,11 +272,12 @@ class Trainer:
         self.config = config
         self._on_step = on_step
         self._told = -1.0
-        #: When this trainer was made: the start of ``config.max_time`` (see :meth:`deadline`).
+        #: The start of ``config.max_time``: when this trainer was made, moved later by each
+        #: compiled program's first call (:meth:`_uncounted_first`; see :meth:`deadline`).
         self.started = time.monotonic()
-        #: The part of the budget the remaining phases share: (start, seconds); a discarded
-        #: warm-up restarts it with what is left (see :meth:`deadline`).
-        self._budget = (self.started, config.max_time)
+        #: Seconds of the budget a discarded warm-up used: sunk, the later phases share the rest
+        #: from the moment of the discard (see :meth:`deadline`).
+        self._sunk = 0.0
         #: The programs whose first call (their compilation) has been left out of the budget.
         self._compiled: set[str] = set()
         self.train_pairs = Windows.of(train, window, skip=config.first_start)
@@ -307,8 +308,7 @@ class Trainer:
         if cfg.max_time <= 0:
             return np.inf
         share = PRE_POLISH_SHARE if phase != "lbfgs" and cfg.lbfgs_steps > 0 else 1.0
-        start, seconds = self._budget
-        return start + share * seconds
+        return self.started + self._sunk + share * (cfg.max_time - self._sunk)
 
     def _uncounted_first(self, name: str, program: Callable[..., Any], *args: Any) -> Any:
         """``program(*args)``; its first time under ``name`` in this trainer — a compiled program's first
@@ -322,7 +322,6 @@ class Trainer:
         spent = time.monotonic() - t0
         self._compiled.add(name)
         self.started += spent
-        self._budget = (self._budget[0] + spent, self._budget[1])
         return out
 
     def _over_budget(self, phase: str, step: int, of: int, what: str) -> str | None:
@@ -336,9 +335,9 @@ class Trainer:
             ""
             if phase == "lbfgs" or cfg.lbfgs_steps == 0
             else f", {PRE_POLISH_SHARE:.0%} of it before the polish"
-            if self._budget[0] == self.started
-            else f", {PRE_POLISH_SHARE:.0%} of the {self._budget[1]:.0f} s a discarded warm-up left "
-            "before the polish"
+            if self._sunk == 0
+            else f", {PRE_POLISH_SHARE:.0%} of the {cfg.max_time - self._sunk:.0f} s a discarded warm-up "
+            "left before the polish"
         )
         return (
             f"{what} stopped at {unit} {step} of {of}: the time budget "
@@ -373,8 +372,7 @@ class Trainer:
         if accept > 0 and not last["val_total"] <= accept:  # a NaN loss is discarded too
             last["warmup"] = "discarded"
             state.model, state.best_model, state.best_val = initial, initial, np.inf
-            now = time.monotonic()
-            self._budget = (now, max(0.0, self.config.max_time - (now - self.started)))
+            self._sunk = min(time.monotonic() - self.started, self.config.max_time)
         else:
             state.best_model, state.best_val = state.model, last["val_total"]
             if accept > 0:
@@ -530,16 +528,14 @@ class Trainer:
             model, opt_state, last = self._uncounted_first(
                 f"adam-{regularize}",
                 adam_step,
-                *(
-                    model,
-                    opt_state,
-                    jnp.asarray(i),
-                    self._train,
-                    self.scales,
-                    self._key,
-                    adam_cfg,
-                    regularize,
-                ),
+                model,
+                opt_state,
+                jnp.asarray(i),
+                self._train,
+                self.scales,
+                self._key,
+                adam_cfg,
+                regularize,
             )
             skipped = skipped + last["skipped"]
             done = i + 1
