@@ -1,9 +1,10 @@
 """Integrators: RK4 has order 4; the adaptive solver meets exact solutions."""
 
+import diffrax
 import jax.numpy as jnp
 import numpy as np
 
-from fhnn.physics.integrators import adaptive_solve, rk4_solve
+from fhnn.physics.integrators import STALL_PATIENCE, StallGuard, adaptive_solve, rk4_solve
 
 
 def oscillator(s, t):
@@ -46,3 +47,48 @@ def test_adaptive_solver_reports_failure():
     ys, ok = adaptive_solve(blow_up, jnp.asarray([1.0]), jnp.linspace(0.0, 2.0, 5), max_steps=1000)
     assert not bool(ok)
     assert not np.all(np.isfinite(np.asarray(ys)))
+
+
+def _stalling_solve(patience: int, max_steps: int) -> diffrax.Solution:
+    """s' = (1.025 - t)^(-1/2): s stays finite (s(1) = 2(√1.025 - √0.025)) but the field is
+    singular at t = 1.025, where Dopri8's steps shrink geometrically and time stalls."""
+    ts = jnp.linspace(0.0, 2.0, 41)
+    term = diffrax.ODETerm(lambda t, y, args: jnp.abs(1.025 - t) ** -0.5 * jnp.ones_like(y))
+    inner = diffrax.ClipStepSizeController(diffrax.PIDController(rtol=1e-10, atol=1e-10), step_ts=ts)
+    guard = StallGuard(inner, jnp.asarray(1e-9 * 0.05), patience)
+    return diffrax.diffeqsolve(
+        term,
+        diffrax.Dopri8(),
+        0.0,
+        2.0,
+        None,
+        jnp.zeros(1),
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=guard,
+        max_steps=max_steps,
+        throw=False,
+    )
+
+
+def test_stall_guard_stops_a_collapsed_step_size_early_and_keeps_the_states_before_it():
+    guarded = _stalling_solve(STALL_PATIENCE, 20_000)
+    unguarded = _stalling_solve(10**9, 20_000)
+    # Without the guard the stall spends the whole budget; with it, the solve stops as failed
+    # after the approach (91 accepted steps) and at most a few hundred more.
+    assert unguarded.result == diffrax.RESULTS.max_steps_reached
+    assert int(unguarded.stats["num_steps"]) == 20_000
+    assert guarded.result == diffrax.RESULTS.dt_min_reached
+    assert int(guarded.stats["num_steps"]) < 500
+    exact = 2 * (np.sqrt(1.025) - np.sqrt(0.025))
+    assert abs(float(guarded.ys[20, 0]) - exact) < 1e-8  # t = 1, before the singularity
+    np.testing.assert_array_equal(np.asarray(guarded.ys[:21]), np.asarray(unguarded.ys[:21]))
+    _, ok = adaptive_solve(
+        lambda s, t: jnp.abs(1.025 - t) ** -0.5 * jnp.ones_like(s),
+        jnp.zeros(1),
+        jnp.linspace(0.0, 2.0, 41),
+        rtol=1e-10,
+        atol=1e-10,
+        dense=False,
+        max_steps=20_000,
+    )
+    assert not bool(ok)

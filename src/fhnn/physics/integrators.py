@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import diffrax
 import equinox as eqx
@@ -50,6 +51,74 @@ def rk4_solve(f: VectorField, s0: Array, ts: Array) -> Array:
     return jnp.concatenate([s0[None], rest], axis=0)
 
 
+#: Consecutive steps shorter than :data:`STALL_FRACTION` of the mean output interval after which
+#: an adaptive solve stops as failed (:class:`StallGuard`).
+STALL_PATIENCE = 100
+#: A step shorter than this fraction of the mean output interval counts towards a stall.
+STALL_FRACTION = 1e-9
+
+
+class StallGuard(diffrax.AbstractAdaptiveStepSizeController):
+    """Stops a solve, as failed, once ``patience`` consecutive steps (kept or rejected) were
+    shorter than ``min_step``: the step size has collapsed onto a singularity of the vector field
+    (seen on learned Lagrangians whose mass matrix turns singular: the time stalls at a point
+    while accepted steps shrink geometrically), and the solve would otherwise spend its whole
+    step budget there. Under :func:`jax.vmap` a stalled trajectory holds every other one in the
+    loop, so stopping it early is what keeps a batch of rollouts cheap. A well-posed solve never
+    trips it: after one short step (landing a few ULP short of an output time) the controller
+    grows the step up to tenfold per step. The states before the stall are unchanged.
+
+    Attributes:
+        controller: the adaptive controller it wraps.
+        min_step: steps shorter than this [s] count towards a stall.
+        patience: consecutive short steps that stop the solve.
+    """
+
+    controller: diffrax.AbstractAdaptiveStepSizeController
+    min_step: Array
+    patience: int = eqx.field(static=True)
+
+    @property
+    def rtol(self) -> Any:
+        return self.controller.rtol
+
+    @property
+    def atol(self) -> Any:
+        return self.controller.atol
+
+    @property
+    def norm(self) -> Callable[[Any], Array]:
+        return self.controller.norm
+
+    def wrap(self, direction: Any) -> StallGuard:
+        return eqx.tree_at(lambda c: c.controller, self, self.controller.wrap(direction))
+
+    def init(
+        self, terms: Any, t0: Any, t1: Any, y0: Any, dt0: Any, args: Any, func: Any, error_order: Any
+    ) -> tuple[Any, Any]:
+        t1, inner = self.controller.init(terms, t0, t1, y0, dt0, args, func, error_order)
+        return t1, (jnp.asarray(0), inner)
+
+    def adapt_step_size(  # the arguments of diffrax's controller interface
+        self,
+        t0: Any,
+        t1: Any,
+        y0: Any,
+        y1_candidate: Any,
+        args: Any,
+        y_error: Any,
+        error_order: Any,
+        state: Any,
+    ) -> tuple[Any, ...]:
+        count, inner = state
+        keep, next_t0, next_t1, jump, inner, result = self.controller.adapt_step_size(
+            t0, t1, y0, y1_candidate, args, y_error, error_order, inner
+        )
+        count = jnp.where(t1 - t0 < self.min_step, count + 1, 0)
+        result = diffrax.RESULTS.where(count >= self.patience, diffrax.RESULTS.dt_min_reached, result)
+        return keep, next_t0, next_t1, jump, (count, inner), result
+
+
 def adaptive_solve(
     f: VectorField,
     s0: Array,
@@ -68,7 +137,8 @@ def adaptive_solve(
         s0: initial state, shape ``(D,)``.
         ts: increasing output times [s], shape ``(T,)``.
         rtol, atol: local error tolerances of the step-size controller.
-        max_steps: step budget; running out counts as a failure.
+        max_steps: step budget; running out counts as a failure, and so does a stalled step
+            size (:class:`StallGuard`).
         dense: interpolate outputs between steps (fast) rather than stepping onto every output
             time (most accurate).
         bound: stop, as a failure, once any component of the state exceeds this magnitude (a
@@ -82,6 +152,8 @@ def adaptive_solve(
     controller = diffrax.PIDController(rtol=rtol, atol=atol)
     if not dense:
         controller = diffrax.ClipStepSizeController(controller, step_ts=ts)
+    min_step = STALL_FRACTION * (ts[-1] - ts[0]) / (ts.shape[0] - 1)
+    controller = StallGuard(controller, min_step, STALL_PATIENCE)
     sol = diffrax.diffeqsolve(
         term,
         diffrax.Dopri8(),
