@@ -4,7 +4,7 @@ import diffrax
 import jax.numpy as jnp
 import numpy as np
 
-from fhnn.physics.integrators import STALL_PATIENCE, StallGuard, adaptive_solve, rk4_solve
+from fhnn.physics.integrators import STALL_PATIENCE, StallGuard, adaptive_solve, rk4_solve, rk4_step
 
 
 def oscillator(s, t):
@@ -27,6 +27,16 @@ def test_rk4_convergence_order_is_four():
         steps.append(10.0 / n)
     slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
     assert abs(slope - 4.0) < 0.15, slope
+
+
+def test_rk4_step_with_a_given_first_stage_is_the_same_step():
+    # the training loss hands f(s, t) to the step; a wrong k1 must change the step (it is used)
+    s, t, dt = jnp.asarray([0.3, -1.2]), jnp.asarray(0.7), jnp.asarray(0.05)
+    plain = np.asarray(rk4_step(oscillator, s, t, dt))
+    given = np.asarray(rk4_step(oscillator, s, t, dt, k1=oscillator(s, t)))
+    np.testing.assert_array_equal(given, plain)
+    wrong = np.asarray(rk4_step(oscillator, s, t, dt, k1=oscillator(s, t) + 1.0))
+    assert np.abs(wrong - plain).min() > 1e-3
 
 
 def test_adaptive_solver_meets_exact_solution():

@@ -147,9 +147,10 @@ class AbstractVectorField(AbstractModel):
 
         def one(s: Array, t: Array, a: Array, r: Array) -> tuple[Array, Array]:
             f = lambda x, tt: self(x, tt, forcing(a, tt, t, r))  # noqa: E731
+            d0 = f(s[0], t[0])
             if width == 2:
-                return f(s[0], t[0]), rk4_step(f, s[0], t[0], t[1] - t[0])[None]
-            return f(s[0], t[0]), rk4_solve(f, s[0], t)[1:]
+                return d0, rk4_step(f, s[0], t[0], t[1] - t[0], k1=d0)[None]
+            return d0, rk4_solve(f, s[0], t)[1:]
 
         pred_d, pred_path = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
         terms = {
