@@ -1,5 +1,5 @@
 """The README's Python example runs as written (so it cannot rot), through the public names of
-``fhnn``; its headline reproduction table is the one the run wrote."""
+``fhnn``; its headline reproduction table and T4 sentence are the numbers the run wrote."""
 
 from __future__ import annotations
 
@@ -64,6 +64,11 @@ def _headline_table() -> dict[str, list[str]]:
     return rows
 
 
+def _records() -> list[dict]:
+    """The cells the reproduction wrote (``docs/reproduction/tables.json``)."""
+    return json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())
+
+
 def _same(printed: str, value: float, digits: int) -> bool:
     """``printed`` is ``value`` rounded to ``digits`` significant digits."""
     return float(f"{value:.{digits - 1}e}") == float(printed)
@@ -72,7 +77,7 @@ def _same(printed: str, value: float, digits: int) -> bool:
 def test_readme_headline_table_is_the_reproductions_tables_json() -> None:
     """Every cell of the README's headline table is the cell of ``docs/reproduction/tables.json``
     (the file the run wrote) it names: mean and std, a median, or the diverged count."""
-    records = json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())
+    records = _records()
     rows = _headline_table()
     assert set(rows) == set(HEADLINE_ROWS)
     for label, (table, model, horizon) in HEADLINE_ROWS.items():
@@ -84,26 +89,25 @@ def test_readme_headline_table_is_the_reproductions_tables_json() -> None:
                 == (table, data, model, horizon, "rmse_pos")
             ]
             where = f"README '{label}' on {data}: {cell!r} against {rec}"
+            assert float(rows[label][2]) == rec["paper"], where
             if cell.startswith("diverged"):
                 assert rec["statistic"] == "median" and rec["mean"] is None, where
                 assert f"({rec['diverged']}/{rec['rollouts']} rollouts)" in cell, where
                 continue
             if cell.startswith("median"):
-                assert (
-                    rec["statistic"] == "median" and f"({rec['diverged']}/{rec['rollouts']} diverged)" in cell
-                )
+                assert rec["statistic"] == "median", where
+                assert f"({rec['diverged']}/{rec['rollouts']} diverged)" in cell, where
                 assert _same(re.match(r"median " + NUMBER, cell).group(1), rec["mean"], 3), where
                 continue
             mean, std = re.match(NUMBER + r" ± " + NUMBER, cell).groups()
             assert rec["statistic"] == "mean" and rec["diverged"] == 0, where
             assert _same(mean, rec["mean"], 3) and _same(std, rec["std"], 2), where
-        assert float(rows[label][2]) == rec["paper"], label
 
 
 def test_readme_t4_sentence_is_the_reproductions_tables_json() -> None:
     """The README's T4 sentence gives each scenario's FHNN RMSE(pos) at 5 s as the run wrote it,
     and 'N×' as the paper's number over it (or over the paper's, where it says 'worse')."""
-    records = json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())
+    records = _records()
     text = (ROOT / "README.md").read_text()
     sentence = text[text.index("T4 (5 s, against the paper's") : text.index("Ablations (T5")]
     t4 = [r for r in records if (r["table"], r["model"], r["metric"]) == ("T4", "fhnn", "rmse_pos")]
