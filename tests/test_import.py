@@ -28,6 +28,7 @@ from fhnn.models.base import AbstractVectorField
 from fhnn.physics.actuation import actuation_force, forcing
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import rk4_step
+from fhnn.training.plans import ESTIMATED_VELOCITY_LR_C_L
 from fhnn.training.run import Run
 from fhnn.training.trainer import TrainConfig, Trainer
 
@@ -242,9 +243,10 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().err.split())
     assert "velocities and derivatives were estimated, not measured: training with" in said
-    assert "train.w_deriv=0.0, train.w_step=0.0, train.batch_size=32 (--set wins)" in said
+    assert "train.w_deriv=0.0, train.w_step=0.0, train.batch_size=32, train.lr_c_l=10.0 (--set wins)" in said
     config = Run.load(run).train_config
     assert (config.shoot, config.w_deriv, config.w_step, config.batch_size) == (8, 0.0, 0.0, 32)
+    assert config.lr_c_l == ESTIMATED_VELOCITY_LR_C_L == 10.0
     for args in (["evaluate", str(run), "--horizons", "1,3", "--json"], ["inspect", str(run)]):
         with pytest.raises(SystemExit) as info:
             main(args)

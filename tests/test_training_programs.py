@@ -229,3 +229,27 @@ def test_commands_compilation_cache_folder(tmp_path, monkeypatch):
     blocker.write_text("not a folder")
     monkeypatch.setenv(CACHE_ENV, str(blocker / "jax"))
     assert default_cache_dir() is None  # cannot be created: no cache, no error
+
+
+def test_lr_c_l_scales_only_the_constant_linear_drags_step(data):
+    """``train.lr_c_l = K``: Adam's first update of ``c_l_raw`` is K times the plain one (Adam's
+    first step is the rate times g/(|g| + ε)), every other parameter's is identical."""
+    model = fresh(data)
+    updates = {}
+    for k in (1.0, 7.0):
+        config = TrainConfig(steps=10, batch_size=16, lr_c_l=k)
+        tr = Trainer(config, data.train, data.val)
+        state = tr.init(model)
+        args = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key)
+        moved = adam_step(*args, config.only(ADAM_FIELDS), True)[0]
+        updates[k] = jax.tree_util.tree_map(
+            lambda a, b: np.asarray(a - b), eqx.filter(moved, eqx.is_array), eqx.filter(model, eqx.is_array)
+        )
+    c_l = lambda u: float(u.eom.coefficients.c_l_raw)  # noqa: E731
+    assert abs(c_l(updates[1.0])) > 1e-4  # it moved, by about the rate (3e-3)
+    assert c_l(updates[7.0]) == pytest.approx(7.0 * c_l(updates[1.0]), rel=1e-9)
+    rest = lambda u: eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, u, np.zeros(()))  # noqa: E731
+    for a, b in zip(arrays(rest(updates[1.0])), arrays(rest(updates[7.0])), strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(Exception, match="lr_c_l"):
+        TrainConfig(lr_c_l=0.0)
