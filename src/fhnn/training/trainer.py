@@ -494,10 +494,12 @@ class Trainer:
     def optimizer_for(config: TrainConfig) -> optax.GradientTransformation:
         """Adam with the configuration's piecewise-constant learning rate; with ``lr_c_l ≠ 1`` the
         parameters named ``c_l_raw`` (a constant linear drag) step at ``lr_c_l`` times that rate."""
+        rate = config.schedule()
         if config.lr_c_l == 1.0:
-            return optax.adam(config.schedule())
-        fast = optax.adam(lambda i: config.lr_c_l * config.schedule()(i))
-        return optax.multi_transform({"rest": optax.adam(config.schedule()), "c_l": fast}, _c_l_labels)
+            return optax.adam(rate)
+        fast = optax.adam(lambda i: config.lr_c_l * rate(i))
+        # a model without c_l_raw (a baseline, linear_drag="net") has every leaf in "rest"
+        return optax.multi_transform({"rest": optax.adam(rate), "c_l": fast}, _c_l_labels)
 
     def init(self, model: AbstractModel) -> TrainState:
         opt_state = self.optimizer.init(eqx.filter(model, eqx.is_array))
