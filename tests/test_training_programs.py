@@ -15,6 +15,7 @@ import pytest
 
 import fhnn.training.trainer as trainer_module
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.errors import ConfigError
 from fhnn.models.baselines import MLPConfig
 from fhnn.models.fhnn import FHNNConfig
 from fhnn.models.registry import MODELS
@@ -251,5 +252,5 @@ def test_lr_c_l_scales_only_the_constant_linear_drags_step(data):
     rest = lambda u: eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, u, np.zeros(()))  # noqa: E731
     for a, b in zip(arrays(rest(updates[1.0])), arrays(rest(updates[7.0])), strict=True):
         np.testing.assert_array_equal(a, b)
-    with pytest.raises(Exception, match="lr_c_l"):
+    with pytest.raises(ConfigError, match="lr_c_l must be > 0, got 0.0"):
         TrainConfig(lr_c_l=0.0)
