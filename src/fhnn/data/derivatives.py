@@ -13,14 +13,14 @@ make a data set of it:
   (:data:`SMOOTHERS`), both held to the noise level by the discrepancy principle (RMS residual
   ≤ σ: as close to the samples as the noise allows and no closer):
 
-  - ``"spline"`` (default): a quintic FITPACK smoothing spline per series
-    (:class:`scipy.interpolate.UnivariateSpline`, ``Σ res² ≤ n σ²``), ~30 ms per 2,000 samples;
-  - ``"kalman"``: a Kalman (Rauch–Tung–Striebel) smoother per trajectory and axis under a
+  - ``"kalman"`` (default): a Kalman (Rauch–Tung–Striebel) smoother per trajectory and axis under a
     white-noise-jerk model (state: position, velocity, acceleration; each interval's transition
     and process noise computed for its own length, so irregular steps are exact). Its posterior
     mean is the quintic smoothing spline; the jerk intensity ``q`` is chosen on a quarter-decade
     grid, pooled over the series. Every series runs at once (``jax.lax.scan`` over time,
-    vectorised over series, chunks of :data:`CHUNK`).
+    vectorised over series, chunks of :data:`CHUNK`);
+  - ``"spline"``: a quintic FITPACK smoothing spline per series
+    (:class:`scipy.interpolate.UnivariateSpline`, ``Σ res² ≤ n σ²``), ~30 ms per 2,000 samples.
 
 Measured on a sinusoid sampled at 0.05 s ± 30 % with 1 mm noise (2,000 samples): the noise level
 comes out at 1.01 mm; the velocity's RMS error in the interior is 1.5 mm/s for the spline and
@@ -28,9 +28,12 @@ comes out at 1.01 mm; the velocity's RMS error in the interior is 1.5 mm/s for t
 spline at most 13 mm/s in the first 50); a cubic spline gives 2.9 mm/s, a local cubic fit over ±8
 samples 2.5, a spline with generalised cross-validation 3.1 (70× slower), the Kalman smoother at
 the maximum-likelihood ``q`` 3.7 (it follows the positions, not their derivatives). On issue 14's
-data (``benchmarks/own_data.py``) the spline's estimates trained the better model (masses 0.9 /
-1.1 % off against 2.5 / 2.1 %; 5 s rollouts from the true state 1.6e-3 against 2.3e-3 m), so it
-is the default; the Kalman smoother imports 2 million rows in 7.0 s against 64 s.
+tracks (``benchmarks/own_data.py``: ``steady_vortex``, 1 mm noise, 0.05 s ± 30 %) the Kalman
+smoother's velocities are 1.27 / 1.17 mm/s RMS off against the spline's 1.53 / 1.51 (data seeds
+0 / 1; the first sample 8.6 against 10 mm/s). The models trained on either tie on the validation
+split — each scored on both imports' validation windows, the two models differ by ≤ 1.5 % on
+either — while the Kalman import's own validation loss is 20 / 29 % lower (its windows start from
+better velocities), and it imports 2 million rows in 8.5 s against 72 s: so it is the default.
 """
 
 from __future__ import annotations
@@ -38,18 +41,17 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.interpolate import UnivariateSpline
 
 from fhnn.errors import ConfigError
 
 #: Degree of :func:`spline_derivatives`.
 SPLINE_DEGREE = 5
 #: Series smoothed per compiled pass (bounds memory: ~130 bytes per sample and series).
-CHUNK = 512
+CHUNK = 256
 #: Grid of jerk intensities, as powers of ten relative to ``σ² / h⁵`` (h: the median step).
 Q_GRID = np.arange(-8.0, 1.01, 0.25)
-#: Series (at most) on which the intensity is chosen.
-Q_SERIES = 16
+#: Series (at most) on which the intensity is chosen (× the grid's 37 intensities: two chunks).
+Q_SERIES = 13
 
 
 def lagrange_residuals(t: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -86,14 +88,43 @@ def noise_level(series: list[tuple[np.ndarray, np.ndarray]]) -> float:
     return robust_std(np.concatenate([np.zeros(0), *residuals]))
 
 
+def _mm(a: jax.Array, b: jax.Array) -> jax.Array:
+    """Product of stacks of 3 × 3 matrices laid out ``(3, 3, S)`` (series last, so every operation
+    is an element-wise one over the series: batched 3 × 3 products and solves are far slower)."""
+    return a[:, 0, None] * b[None, 0] + a[:, 1, None] * b[None, 1] + a[:, 2, None] * b[None, 2]
+
+
+def _solve_spd(p: jax.Array, b: jax.Array) -> jax.Array:
+    """``p⁻¹ b`` for stacks ``(3, 3, S)`` of symmetric positive-definite ``p`` and any ``b``, by a
+    Cholesky factorisation written out entry by entry (backward stable: near the diffuse start
+    ``p`` is nearly singular, where cofactors lose every digit)."""
+    l00 = jnp.sqrt(p[0, 0])
+    l10, l20 = p[1, 0] / l00, p[2, 0] / l00
+    l11 = jnp.sqrt(p[1, 1] - l10 * l10)
+    l21 = (p[2, 1] - l20 * l10) / l11
+    l22 = jnp.sqrt(p[2, 2] - l20 * l20 - l21 * l21)
+    y0 = b[0] / l00  # L y = b
+    y1 = (b[1] - l10 * y0) / l11
+    y2 = (b[2] - l20 * y0 - l21 * y1) / l22
+    x2 = y2 / l22  # Lᵀ x = y
+    x1 = (y1 - l21 * x2) / l11
+    x0 = (y0 - l10 * x1 - l20 * x2) / l00
+    return jnp.stack([x0, x1, x2])
+
+
 def _transition(h: jax.Array, q: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """Transition ``F`` and process noise ``Q`` (each ``(S, 3, 3)``) over steps ``h`` ``(S,)`` of a
+    """Transition ``F`` and process noise ``Q`` (each ``(3, 3, S)``) over steps ``h`` ``(S,)`` of a
     white-noise-jerk model of intensity ``q`` ``(S,)``."""
     one, zero = jnp.ones_like(h), jnp.zeros_like(h)
-    rows = lambda *r: jnp.stack([jnp.stack(x, -1) for x in r], -2)  # noqa: E731
-    F = rows((one, h, h * h / 2), (zero, one, h), (zero, zero, one))
-    Q = rows((h**5 / 20, h**4 / 8, h**3 / 6), (h**4 / 8, h**3 / 3, h**2 / 2), (h**3 / 6, h**2 / 2, h))
-    return F, q[:, None, None] * Q
+    F = jnp.stack([jnp.stack([one, h, h * h / 2]), jnp.stack([zero, one, h]), jnp.stack([zero, zero, one])])
+    Q = jnp.stack(
+        [
+            jnp.stack([h**5 / 20, h**4 / 8, h**3 / 6]),
+            jnp.stack([h**4 / 8, h**3 / 3, h**2 / 2]),
+            jnp.stack([h**3 / 6, h**2 / 2, h]),
+        ]
+    )
+    return F, q * Q
 
 
 @jax.jit
@@ -104,37 +135,39 @@ def rts_smooth(
     ``t`` ``(S, n)`` [s] (non-decreasing; a zero step is padding) with values ``z`` ``(S, n)``,
     observed where ``mask`` ``(S, n)`` (the first sample always), noise std ``noise``, jerk
     intensity ``q`` ``(S,)``. The first sample's velocity and acceleration start diffuse (a
-    variance of 10⁶ σ² per power of the typical ``step`` [s])."""
+    variance of 10⁶ σ² per power of the typical ``step`` [s]). The forward (Kalman) pass also
+    gives each step's smoother gain ``G_k = P_k Fᵀ P⁻_{k+1}⁻¹``, so the backward pass is
+    ``x̂_k = x_k + G_k (x̂_{k+1} − x⁻_{k+1})``."""
     S = z.shape[0]
-    h_all = jnp.diff(t, axis=1)
     big = 1e6 * noise**2
-    x0 = jnp.stack([z[:, 0], jnp.zeros(S), jnp.zeros(S)], -1)
-    P0 = jnp.broadcast_to(jnp.diag(jnp.stack([noise**2, big / step**2, big / step**4])), (S, 3, 3))
+    x0 = jnp.stack([z[:, 0], jnp.zeros(S), jnp.zeros(S)])
+    P0 = jnp.diag(jnp.stack([noise**2, big / step**2, big / step**4]))[:, :, None] * jnp.ones(S)
 
     def forward(carry, inputs):
         x, P = carry
         h, zk, mk = inputs
         F, Q = _transition(h, q)
-        xp = jnp.einsum("sij,sj->si", F, x)
-        Pp = jnp.einsum("sij,sjk,slk->sil", F, P, F) + Q
-        gain = Pp[:, :, 0] / (Pp[:, 0, 0] + noise**2)[:, None] * mk[:, None]
-        xf = xp + gain * (zk - xp[:, 0])[:, None]
-        Pf = Pp - gain[:, :, None] * Pp[:, 0][:, None, :]
-        Pf = 0.5 * (Pf + jnp.swapaxes(Pf, 1, 2))
-        return (xf, Pf), (xp, Pp, xf, Pf, F)
+        xp = F[:, 0] * x[0] + F[:, 1] * x[1] + F[:, 2] * x[2]
+        PFt = _mm(P, jnp.swapaxes(F, 0, 1))
+        Pp = _mm(F, PFt) + Q
+        gain = Pp[:, 0] / (Pp[0, 0] + noise**2) * mk
+        xf = xp + gain * (zk - xp[0])
+        Pf = Pp - gain[:, None] * Pp[0][None, :]
+        Pf = 0.5 * (Pf + jnp.swapaxes(Pf, 0, 1))
+        return (xf, Pf), (xp, xf, jnp.swapaxes(_solve_spd(Pp, jnp.swapaxes(PFt, 0, 1)), 0, 1))
 
-    _, (xp, Pp, xf, Pf, F) = jax.lax.scan(forward, (x0, P0), (h_all.T, z[:, 1:].T, mask[:, 1:].T))
-    xf = jnp.concatenate([x0[None], xf])
-    Pf = jnp.concatenate([P0[None], Pf])
+    inputs = (jnp.diff(t, axis=1).T, z[:, 1:].T, mask[:, 1:].T)
+    _, (xp, xf, G) = jax.lax.scan(forward, (x0, P0), inputs)
 
     def backward(xs, inputs):
-        xfk, Pfk, xpk, Ppk, Fk = inputs
-        gain_t = jnp.linalg.solve(Ppk, jnp.einsum("sij,sjk->sik", Fk, Pfk))
-        xsk = xfk + jnp.einsum("sji,sj->si", gain_t, xs - xpk)
-        return xsk, xsk
+        xf_prev, xp_k, G_prev = inputs  # filtered state at k - 1, prediction of k, gain of k - 1
+        d = xs - xp_k
+        x_prev = xf_prev + G_prev[:, 0] * d[0] + G_prev[:, 1] * d[1] + G_prev[:, 2] * d[2]
+        return x_prev, x_prev
 
-    _, xs = jax.lax.scan(backward, xf[-1], (xf[:-1], Pf[:-1], xp, Pp, F), reverse=True)
-    return jnp.swapaxes(jnp.concatenate([xs, xf[-1][None]]), 0, 1)
+    xf_all = jnp.concatenate([x0[None], xf])
+    _, xs = jax.lax.scan(backward, xf_all[-1], (xf_all[:-1], xp, G), reverse=True)
+    return jnp.transpose(jnp.concatenate([xs, xf_all[-1][None]]), (2, 0, 1))
 
 
 def _padded(series: list[tuple[np.ndarray, np.ndarray]], size: int) -> tuple[np.ndarray, ...]:
@@ -150,13 +183,31 @@ def _padded(series: list[tuple[np.ndarray, np.ndarray]], size: int) -> tuple[np.
     return t, z, mask
 
 
-def _smooth(series: list[tuple[np.ndarray, np.ndarray]], noise: float, q: np.ndarray) -> np.ndarray:
-    """:func:`rts_smooth` over ``series`` (padded to a multiple of 256 samples), ``(S, size, 3)``."""
-    size = -(-max(ti.size for ti, _ in series) // 256) * 256
-    t, z, mask = _padded(series, size)
-    step = max(float(np.median(np.concatenate([np.diff(ti) for ti, _ in series]))), 1e-12)
-    arrays = (t, z, mask, noise, q, step)
-    return np.asarray(rts_smooth(*(jnp.asarray(a) for a in arrays)))
+def _smooth(
+    series: list[tuple[np.ndarray, np.ndarray]], noise: float, q: np.ndarray, size: int
+) -> list[np.ndarray]:
+    """:func:`rts_smooth` of each series with its intensity ``q`` ``(S,)``, padded to ``size``
+    samples: one ``(n_i, 3)`` array per series. Series go :data:`CHUNK` at a time, every chunk
+    filled up to :data:`CHUNK` with copies of its first series, so that an import compiles one
+    program; all chunks are dispatched before any is read (the CPU runs them side by side)."""
+    pending = []
+    for start in range(0, len(series), CHUNK):
+        chunk = series[start : start + CHUNK]
+        fill = CHUNK - len(chunk)
+        qs = np.r_[q[start : start + CHUNK], np.full(fill, q[start])]
+        t, z, mask = _padded([*chunk, *[chunk[0]] * fill], size)
+        step = max(float(np.median(np.concatenate([np.diff(ti) for ti, _ in chunk]))), 1e-12)
+        pending.append((chunk, rts_smooth(*(jnp.asarray(a) for a in (t, z, mask, noise, qs, step)))))
+    out: list[np.ndarray] = []
+    for chunk, smooth in pending:
+        smooth = np.asarray(smooth)
+        out += [smooth[i, : ti.size] for i, (ti, _) in enumerate(chunk)]
+    return out
+
+
+def _size(series: list[tuple[np.ndarray, np.ndarray]]) -> int:
+    """The longest series' length rounded up to a multiple of 256 (the padded time axis)."""
+    return -(-max(ti.size for ti, _ in series) // 256) * 256
 
 
 def jerk_intensity(series: list[tuple[np.ndarray, np.ndarray]], noise: float) -> float:
@@ -169,11 +220,11 @@ def jerk_intensity(series: list[tuple[np.ndarray, np.ndarray]], noise: float) ->
     chosen = [series[i] for i in pick]
     tiled = [s for s in chosen for _ in Q_GRID]
     q = np.tile(base * 10.0**Q_GRID, len(chosen))
-    smooth = _smooth(tiled, noise, q)
+    smooth = _smooth(tiled, noise, q, _size(series))
     sq = np.zeros(Q_GRID.size)
     count = 0
     for j, (ti, zi) in enumerate(tiled):
-        sq[j % Q_GRID.size] += np.sum((smooth[j, : ti.size, 0] - zi) ** 2)
+        sq[j % Q_GRID.size] += np.sum((smooth[j][:, 0] - zi) ** 2)
         count += ti.size if j % Q_GRID.size == 0 else 0
     rms = np.sqrt(sq / count)
     ok = np.flatnonzero(rms <= noise)
@@ -190,12 +241,8 @@ def kalman_derivatives(
     scale = max(float(np.max([np.ptp(z) for _, z in series])), 1.0)
     noise = max(float(noise), 1e-9 * scale)  # noise-free data: smooth to (nearly) interpolation
     q = jerk_intensity(series, noise)
-    out: list[tuple[np.ndarray, np.ndarray]] = []
-    for start in range(0, len(series), CHUNK):
-        chunk = series[start : start + CHUNK]
-        smooth = _smooth(chunk, noise, np.full(len(chunk), q))
-        out += [(smooth[i, : ti.size, 1], smooth[i, : ti.size, 2]) for i, (ti, _) in enumerate(chunk)]
-    return out
+    smoothed = _smooth(series, noise, np.full(len(series), q), _size(series))
+    return [(x[:, 1], x[:, 2]) for x in smoothed]
 
 
 def spline_derivatives(
@@ -204,6 +251,8 @@ def spline_derivatives(
     """As :func:`kalman_derivatives`, from a quintic FITPACK smoothing spline per series
     (:class:`scipy.interpolate.UnivariateSpline`, irregular abscissae as they are) held to
     ``Σ (z_i − s(t_i))² ≤ n σ²``; fewer than 6 samples get a lower degree."""
+    from scipy.interpolate import UnivariateSpline  # here: importing it costs 0.7 s
+
     out = []
     for t, z in series:
         degree = min(SPLINE_DEGREE, t.size - 1)
@@ -218,7 +267,7 @@ SMOOTHERS = {"spline": spline_derivatives, "kalman": kalman_derivatives}
 
 
 def smooth_derivatives(
-    series: list[tuple[np.ndarray, np.ndarray]], noise: float, smoother: str = "spline"
+    series: list[tuple[np.ndarray, np.ndarray]], noise: float, smoother: str = "kalman"
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """First and second time derivatives of every series by the estimator ``smoother`` (a key of
     :data:`SMOOTHERS`)."""

@@ -17,7 +17,7 @@ rows of one trajectory at the same time, a trajectory with fewer than :data:`MIN
 row number counts data rows from 1, the header not included).
 
 Velocities absent from the table, and every acceleration, are estimated
-(:mod:`fhnn.data.derivatives`: a smoothing spline at the noise level the positions show); the data
+(:mod:`fhnn.data.derivatives`: a Kalman smoother held to the noise level the positions show); the data
 set's ``measured`` attribute says which fields were measured, and training then leaves out the
 derivative loss (whose targets would be estimates). Trajectories are split into train, val and
 test by a seeded permutation.
@@ -148,6 +148,23 @@ def _reject_same_times(path: Path, t: np.ndarray, rows: np.ndarray, who: str) ->
         raise DataFormatError(f"{path}: {who}rows {r1} and {r2} have the same time t = {t[same[0]]:g} s")
 
 
+def _trajectory_ids(column: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's trajectory id as text (``""`` where missing), an object array, and its rank in
+    the ids' text order (an integer array to sort by): through Arrow's dictionary encoding, so
+    each distinct id is turned into text once, not once per row."""
+    import pyarrow.compute as pc
+
+    encoded = pc.dictionary_encode(column).combine_chunks()
+    names = np.asarray([*("" if v is None else str(v) for v in encoded.dictionary.to_pylist()), ""], object)
+    indices = encoded.indices
+    if indices.null_count:
+        indices = indices.fill_null(len(names) - 1)
+    codes = indices.to_numpy(zero_copy_only=False).astype(np.int64)
+    rank = np.empty(len(names), dtype=np.int64)
+    rank[np.argsort(names.astype(str), kind="stable")] = np.arange(len(names))
+    return names[codes], rank[codes]
+
+
 def read_table(path: str | os.PathLike[str]) -> Table:
     """Read and check a trajectory table (see the module docstring)."""
     path, arrow, names = _open(path, "a table", REQUIRED, COLUMNS)
@@ -159,9 +176,7 @@ def read_table(path: str | os.PathLike[str]) -> Table:
     rows = arrow.num_rows
     if rows == 0:
         raise DataFormatError(f"{path}: the table has no rows")
-    ids = np.asarray(
-        [("" if v is None else str(v)) for v in arrow.column("traj_id").to_pylist()], dtype=object
-    )
+    ids, rank = _trajectory_ids(arrow.column("traj_id"))
     values = {c: _numeric(path, c, arrow.column(c)) for c in names if c != "traj_id"}
     _reject_infinite(path, values, ids)
     gap = np.zeros(rows, dtype=bool)
@@ -171,14 +186,14 @@ def read_table(path: str | os.PathLike[str]) -> Table:
     keep = np.flatnonzero(~gap)
     if keep.size == 0:
         raise DataFormatError(f"{path}: every row has a missing value")
-    order = keep[np.lexsort((values["t"][keep], ids[keep].astype(str)))]
-    sorted_ids = ids[order].astype(str)
-    starts = np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]])
+    order = keep[np.lexsort((values["t"][keep], rank[keep]))]  # by id (as text), then time
+    sorted_rank = rank[order]
+    starts = np.flatnonzero(np.r_[True, sorted_rank[1:] != sorted_rank[:-1]])
     ends = np.r_[starts[1:], order.size]
     trajectories = []
     for a, b in zip(starts, ends, strict=True):
         rows_of = order[a:b]
-        traj_id = str(sorted_ids[a])
+        traj_id = str(ids[order[a]])
         t = values["t"][rows_of]
         _reject_same_times(path, t, rows_of, f"trajectory {traj_id!r}: ")
         if t.size < MIN_SAMPLES:
@@ -245,7 +260,7 @@ class ImportSettings:
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)
     seed: int = 0
     time_dependent: bool = False
-    smoother: str = "spline"
+    smoother: str = "kalman"
 
     def __post_init__(self) -> None:
         if self.smoother not in SMOOTHERS:
