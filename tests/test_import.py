@@ -124,8 +124,8 @@ def test_noise_level_and_velocities_are_estimated_from_positions(fine, imported)
             errors.append((split.states[i, 5 : k - 5, 2:] - v_true[5:-5]).ravel())
     rms = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
     # 1 mm noise at ~0.05 s: a finite difference would be ~28 mm/s off; the default smoother
-    # (the Kalman smoother, said so in the record) is ~20× better
-    assert data.extra["import"]["velocity"].startswith("kalman smoother"), data.extra["import"]
+    # (the spline, said so in the record) is ~10× better
+    assert data.extra["import"]["velocity"].startswith("spline smoother"), data.extra["import"]
     assert rms < 4e-3, rms
 
 

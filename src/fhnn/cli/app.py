@@ -227,15 +227,15 @@ def import_table(
         str,
         typer.Option(
             "--smoother",
-            help="Velocity estimator where the table has none: kalman (default; an RTS smoother, "
-            "8× faster on large tables) or spline (a FITPACK smoothing spline per series).",
+            help="Velocity estimator where the table has none: spline (default; trains the better "
+            "model) or kalman (an RTS smoother, many times faster on large tables).",
         ),
-    ] = "kalman",
+    ] = "spline",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
     """Import measured trajectories from a table into a data set: rows in any order, irregular
     times, unequal lengths; rows with missing values are dropped and counted; velocities the table
-    lacks are estimated from the positions (a Kalman smoother held to the noise level they show).
+    lacks are estimated from the positions (a smoothing spline at the noise level they show).
     Trajectories are split into train/val/test by a seeded permutation."""
     from fhnn.data.table import ImportSettings, parse_split, read_table, table_to_dataset
 

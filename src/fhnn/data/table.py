@@ -17,7 +17,7 @@ rows of one trajectory at the same time, a trajectory with fewer than :data:`MIN
 row number counts data rows from 1, the header not included).
 
 Velocities absent from the table, and every acceleration, are estimated
-(:mod:`fhnn.data.derivatives`: a Kalman smoother held to the noise level the positions show); the data
+(:mod:`fhnn.data.derivatives`: a smoothing spline at the noise level the positions show); the data
 set's ``measured`` attribute says which fields were measured, and training then leaves out the
 derivative loss (whose targets would be estimates). Trajectories are split into train, val and
 test by a seeded permutation.
@@ -260,7 +260,7 @@ class ImportSettings:
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)
     seed: int = 0
     time_dependent: bool = False
-    smoother: str = "kalman"
+    smoother: str = "spline"
 
     def __post_init__(self) -> None:
         if self.smoother not in SMOOTHERS:
