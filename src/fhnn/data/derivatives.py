@@ -31,12 +31,13 @@ the maximum-likelihood ``q`` 3.7 (it follows the positions, not their derivative
 tracks (``benchmarks/own_data.py``: ``steady_vortex``, 1 mm noise, 0.05 s ± 30 %) the Kalman
 smoother's velocities are 1.27 / 1.17 mm/s RMS off against the spline's 1.53 / 1.51 (data seeds
 0 / 1; without forcing 0.94 against 0.88), but the spline's estimates train the better model,
-judged on the validation split without the truth: ``fhnn predict`` from the first second of each validation
-track, 5 s ahead, is 2.34 / 2.63 mm RMS off the observed positions (1 mm noise included) against
-2.60 / 2.86 mm (without forcing 2.03 against 3.91). (The multi-step validation loss is lower on the
-Kalman import, 2.79e-2 against 3.47e-2 on seed 0, but only because its windows start from better
-velocities: scored on the same import's windows the two models are within 1.5 %.) So the spline
-is the default and the Kalman smoother the fast option for large tables.
+judged on the validation split without the truth: ``fhnn predict`` from the first second of each
+validation track, 5 s ahead, is 2.34 / 2.63 mm RMS off the observed positions (1 mm noise
+included) against 2.60 / 2.86 mm (without forcing 2.03 against 3.91). (The multi-step
+validation loss is lower on the Kalman import, 2.79e-2 against 3.47e-2 on seed 0, but only
+because its windows start from better velocities: scored on the same import's windows the two
+models are within 1.5 %.) So the spline is the default and the Kalman smoother the fast option
+for large tables (2 million rows in 5.8 s against 66 s, ``docs/benchmarks/own_data.json``).
 """
 
 from __future__ import annotations
@@ -192,7 +193,7 @@ def _smooth(
     """:func:`rts_smooth` of each series with its intensity ``q`` ``(S,)``, padded to ``size``
     samples: one ``(n_i, 3)`` array per series. Series go :data:`CHUNK` at a time, every chunk
     filled up to :data:`CHUNK` with copies of its first series, so that an import compiles one
-    program; all chunks are dispatched before any is read (the CPU runs them side by side)."""
+    program; every chunk is dispatched before any result is read (JAX runs them asynchronously)."""
     pending = []
     for start in range(0, len(series), CHUNK):
         chunk = series[start : start + CHUNK]
