@@ -192,9 +192,10 @@ def validation_forecast(run: Path, table: dict, ids: list[str], folder: Path) ->
     pred = pacsv.read_csv(folder / "forecast.csv").to_pydict()
     ids_all = table["traj_id"].astype(str)
     seen = ~np.isnan(table["x"])
+    pred_ids = np.asarray(pred["traj_id"]).astype(str)
     errors: dict = {1.0: [], 5.0: []}
     for traj in ids:
-        mine = np.asarray(pred["traj_id"]).astype(str) == traj
+        mine = pred_ids == traj
         t, x, y = (np.asarray(pred[c])[mine] for c in ("t", "x", "y"))
         obs = seen & (ids_all == traj) & (table["t"] > t[0] + 1e-9) & (table["t"] <= t[-1] + 1e-9)
         rel = table["t"][obs] - t[0]
@@ -286,7 +287,8 @@ def ensemble_scores(
         info = json.loads((first / "run.json").read_text())
         info["data"] = os.path.relpath(data.resolve(), first.resolve())
         (first / "run.json").write_text(json.dumps(info, indent=1))
-    done = len(member_folders(ens)) == n and all(Run.load(f).finished for f in member_folders(ens))
+    members = member_folders(ens)
+    done = len(members) == n and all(Run.load(f).finished for f in members)
     start = time.perf_counter()
     run_cli("train", str(data), "-o", str(ens), "--seeds", str(n), "-q", *sets)
     seconds = time.perf_counter() - start
