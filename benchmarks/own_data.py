@@ -348,6 +348,12 @@ def main() -> None:
         "seed-0 member) and score its 90 %% intervals and forecast band",
     )
     p.add_argument(
+        "--noise",
+        type=float,
+        default=1e-3,
+        help="std of the position noise [m] (default 1e-3, issue 14's; other values tag the files)",
+    )
+    p.add_argument(
         "--no-forcing",
         action="store_true",
         help="the same data simulated without actuation and exported without Fx, Fy (identifiability)",
@@ -356,8 +362,8 @@ def main() -> None:
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     sc = get_scenario("steady_vortex")
-    suffix = "_noforce" if args.no_forcing else ""
-    fine_path = out / f"fine_seed{args.data_seed}{suffix}.h5"
+    fine_path = out / f"fine_seed{args.data_seed}{'_noforce' if args.no_forcing else ''}.h5"
+    suffix = ("_noforce" if args.no_forcing else "") + (f"_noise{args.noise:g}" if args.noise != 1e-3 else "")
     if not fine_path.exists():
         config = SimulationConfig.for_scenario(
             sc,
@@ -370,7 +376,7 @@ def main() -> None:
         )
         write_dataset(simulate_dataset(sc, config), fine_path)
     fine = read_dataset(fine_path)
-    observed = dict(step=0.05, jitter=0.3, noise=1e-3, drop=0.05, seed=args.data_seed + 1)
+    observed = dict(step=0.05, jitter=0.3, noise=args.noise, drop=0.05, seed=args.data_seed + 1)
     table = observe(fine, **observed, forces=not args.no_forcing)
     table_clean = observe(fine, **{**observed, "noise": 0.0}, velocities=True)
     csv = write_table(table, out / f"track_seed{args.data_seed}{suffix}.csv")
@@ -452,7 +458,7 @@ def main() -> None:
     (out / f"result_seed{args.data_seed}_{tag}.json").write_text(text)
     print(text)
     print(
-        f"import {import_seconds:.1f} s, noise seen {record['position_noise'] * 1e3:.3f} mm (true 1 mm), "
+        f"import {import_seconds:.1f} s, noise seen {record['position_noise'] * 1e3:.3f} mm (true {args.noise * 1e3:g} mm), "
         f"velocity RMS error {vel_rms * 1e3:.2f} mm/s; train "
         + (f"{train_seconds:.0f} s" if train_seconds is not None else "reused")
     )
