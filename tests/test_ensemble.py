@@ -5,6 +5,7 @@ refused in one line."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -13,7 +14,7 @@ import pytest
 import xarray as xr
 
 from fhnn.cli.app import main
-from fhnn.data.dataset import write_dataset
+from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.training.ensemble import INTERVAL, member_folder
 from fhnn.training.run import Run
 
@@ -102,7 +103,7 @@ def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):
     assert code == 0
     report = json.loads(out)
     assert report["members"] == 3 and report["forced"]
-    for name in ("m_ax", "m_ay", "c_q", "c_l", "c_l/(M+m_ax)"):
+    for name in ("m_ax", "m_ay", "c_q", "c_l", "drag", "c_l/(M+m_ax)"):
         row = report["coefficients"][name]
         assert row["lo"] <= row["median"] <= row["hi"]
         assert 0.0 <= row["coverage"] <= 1.0 and row["true"] > 0
@@ -110,11 +111,15 @@ def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):
     assert list(table)[:5] == ["r", "sigma", "m_ax", "m_ax_lo", "m_ax_hi"]
     assert set(table) >= {f"{n}{e}" for n in ("m_ay", "c_q", "c_l") for e in ("", "_lo", "_hi")}
     # the columns are the members' own median and 5th/95th percentiles at each (r, σ)
+    # ... and the total drag coefficient ½ρA c_q σ + c_l [N·s/m] of each member at that σ
     models = [Run.load(member_folder(ens, s)).state.best_model for s in range(3)]
+    body = read_dataset(ensemble / "data.h5").constants()
     for row in (0, len(table["r"]) // 2):
         r, sigma = table["r"][row], table["sigma"][row]
         values = np.stack([np.asarray(m.coefficients(jnp.asarray(r), jnp.asarray(sigma))) for m in models])
-        for i, name in enumerate(("m_ax", "m_ay", "c_q", "c_l")):
+        drag = 0.5 * body["rho"] * body["A"] * values[:, 2] * sigma + values[:, 3]
+        values = np.column_stack([values, drag])
+        for i, name in enumerate(("m_ax", "m_ay", "c_q", "c_l", "drag")):
             lo, hi = np.percentile(values[:, i], INTERVAL)
             assert table[name][row] == pytest.approx(np.median(values[:, i]), rel=1e-12)
             assert table[f"{name}_lo"][row] == pytest.approx(lo, rel=1e-12)
@@ -129,6 +134,10 @@ def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):
         assert seen.any() and np.all(lo[seen] <= u[seen]) and np.all(u[seen] <= hi[seen])
     code, out, _ = run(["inspect", str(ens)], capsys)
     assert code == 0 and "ensemble of 3 runs" in out and "90 % interval" in out
+    said = " ".join(out.split())
+    assert (
+        re.search(r"│ +drag │", out) and "the data fix their sum, the total drag coefficient drag =" in said
+    )
 
 
 def test_predict_from_an_ensemble_gives_the_median_and_a_band(ensemble, capsys):

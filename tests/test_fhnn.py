@@ -1,6 +1,7 @@
 """FHNN model, training, checkpoints, rollout and metrics."""
 
 import itertools
+import re
 
 import equinox as eqx
 import jax
@@ -319,7 +320,16 @@ def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
     )
     code, out = run(["inspect", str(tmp_path / "run")])
     assert code == 0 and "flow: relative L2 error" in out.out
-    assert "c_q by σ band" in out.out and "quadratic share" in out.out
+    assert "c_q by σ band" in out.out and "quadratic share" in out.out and "drag max rel." in out.out
+    assert re.search(r"│ +drag │", out.out)
+    code, out = run(["inspect", str(tmp_path / "run"), "--json"])
+    drag = json.loads(out.out)["coefficients"]["_drag"]  # the total drag's ranges beside its errors
+    assert 0 < drag["true_min"] <= drag["true_max"] and drag["learned_min"] <= drag["learned_max"]
+    # the true drag grows with σ and does not depend on r: its least is at the slowest visited σ
+    sigma = json.loads(out.out)["coefficients"]["_coverage"]["sigma_min"]
+    _, _, c_q, c_l = np.asarray(data.equations().coefficients(jnp.asarray(1.0), jnp.asarray(sigma)))
+    body = data.constants()
+    assert drag["true_min"] == pytest.approx(0.5 * body["rho"] * body["A"] * c_q * sigma + c_l, rel=1e-12)
     for name in ("flow.png", "coefficients.png"):
         assert (tmp_path / "run" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, out = run(["evaluate", str(tmp_path / "run"), "--horizons", "1,99"])

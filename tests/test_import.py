@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 import operator
+import re
 
 import equinox as eqx
 import h5py
@@ -255,6 +256,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
         assert info.value.code == 0, capsys.readouterr().err
     out = capsys.readouterr().out
     assert "no ground truth: these are estimates, not recovery errors" in out
+    assert re.search(r"│ +drag │", out) and "the data fix their sum" in " ".join(out.split())
     with pytest.raises(SystemExit):
         main(["info", str(data)])
     said = " ".join(capsys.readouterr().out.split())
@@ -270,8 +272,15 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     said = " ".join(capsys.readouterr().out.split())
     assert "are NOT determined by the data" in said and "c_l/(M+m_ax)" in said
     coefficients = read_csv_columns(run / "coefficients.csv")
-    assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l"]
+    assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l", "drag"]
     assert coefficients["r"].size > 50 and np.all(coefficients["m_ax"] > 0)
+    body = read_dataset(data).constants()  # drag: the total drag coefficient ½ρA c_q σ + c_l
+    half_rho_a = 0.5 * body["rho"] * body["A"]
+    np.testing.assert_allclose(
+        coefficients["drag"],
+        half_rho_a * coefficients["c_q"] * coefficients["sigma"] + coefficients["c_l"],
+        rtol=1e-12,
+    )
     with xr.open_dataset(run / "flow.nc", engine="h5netcdf") as flow_file:
         assert set(flow_file.data_vars) == {"u", "v", "psi"} and flow_file["u"].dims == ("y", "x")
     assert read_dataset(data).extra["import"]["traj_ids"]  # unchanged by training

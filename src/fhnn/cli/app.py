@@ -808,6 +808,15 @@ def _exports(model: Any, dataset: Any, run_dir: Path) -> list[Path]:
     ]
 
 
+def _drag_note(sigma_min: float) -> str:
+    """What the data say about c_q and c_l apart (printed under every coefficient table)."""
+    return (
+        "note: c_q and c_l share the drag; the data fix their sum, the total drag coefficient "
+        "drag = ½ρA c_q σ + c_l [N·s/m], more tightly than the split, which rests on how the drag "
+        f"changes with σ down to the slowest relative speed in the data ({_fmt(sigma_min)} m/s)"
+    )
+
+
 def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> None:
     """``fhnn inspect`` on imported data: the learned coefficients and flow, no truth to compare."""
     from fhnn.evaluation.recovery import learned_coefficients
@@ -828,7 +837,7 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
     )
     for col in ("coefficient", "median", "range"):
         table.add_column(col, justify="right")
-    for name in ("m_ax", "m_ay", "c_q", "c_l"):
+    for name in ("m_ax", "m_ay", "c_q", "c_l", "drag"):
         c = coef[name]
         table.add_row(name, _fmt(c["median"]), f"{_fmt(c['learned_min'])} – {_fmt(c['learned_max'])}")
     stdout.print(table)
@@ -838,6 +847,7 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
         f"{_fmt(cov['sigma_max'])} m/s; no ground truth: these are estimates, not recovery errors",
         soft_wrap=True,
     )
+    stdout.print(_drag_note(cov["sigma_min"]), soft_wrap=True)
     forced = "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
     if not forced:
         stdout.print(
@@ -859,6 +869,7 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
     """``fhnn inspect`` on an ensemble: each coefficient and identifiable ratio with the members'
     median and 90 % interval (against the truth where the data were simulated), and the
     ``coefficients.csv`` / ``flow.nc`` of the ensemble (with ``_lo`` / ``_hi``) in the folder."""
+    from fhnn.evaluation.recovery import visited_r_sigma
     from fhnn.experiments.exports import ensemble_intervals, write_coefficients_csv, write_flow_netcdf
 
     _, runs, dataset = _load_runs(folder, data, fhnn_only=True)
@@ -899,6 +910,7 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
             cells += [_fmt(r["true"]), f"{r['coverage']:.0%} of points", f"{r['max_rel']:.2%}"]
         table.add_row(*cells)
     stdout.print(table)
+    stdout.print(_drag_note(visited_r_sigma(models[0].eom, dataset)[:, 1].min()), soft_wrap=True)
     if not forced:
         stdout.print(
             "note: no known forcing in the data — the added masses and drag coefficients are NOT "
@@ -968,12 +980,21 @@ def inspect(
             f"{c['mean_rel']:.2%}",
             f"{c['max_rel']:.2%}",
         )
+    d = coef["_drag"]
+    table.add_row(
+        "drag",
+        f"{_fmt(d['learned_min'])} – {_fmt(d['learned_max'])}",
+        f"{_fmt(d['true_min'])} – {_fmt(d['true_max'])}",
+        f"{d['mean_rel']:.2%}",
+        f"{d['max_rel']:.2%}",
+    )
     stdout.print(table)
+    stdout.print(_drag_note(coef["_coverage"]["sigma_min"]), soft_wrap=True)
     bands = Table(
         title="c_q by σ band (quantiles of the visited σ); small quadratic share: c_q weakly constrained",
         title_justify="left",
     )
-    for col in ("σ [m/s]", "points", "quadratic share of drag", "c_q max rel. error"):
+    for col in ("σ [m/s]", "points", "quadratic share of drag", "c_q max rel. error", "drag max rel. error"):
         bands.add_column(col, justify="right")
     for b in coef["_by_sigma"]:
         bands.add_row(
@@ -981,6 +1002,7 @@ def inspect(
             str(b["points"]),
             f"{b['quadratic_share']:.1%}",
             f"{b['c_q']:.2%}",
+            f"{b['drag']:.2%}",
         )
     stdout.print(bands)
     still = coef["_near_initial"]

@@ -68,8 +68,8 @@ def drag_ratios(coefficients: np.ndarray, mass: float) -> np.ndarray:
 
 def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dict[str, Any]:
     """Per coefficient: ``mean_rel``, ``max_rel`` error and the ranges of learned and true values;
-    ``_coverage``: the (r, σ) ranges [m, m/s]; ``_drag``: the same errors of the total drag
-    coefficient ``½ρA c_q σ + c_l`` [N·s/m] (the data determine it even where they cannot split
+    ``_coverage``: the (r, σ) ranges [m, m/s]; ``_drag``: the same errors and ranges of the total
+    drag coefficient ``½ρA c_q σ + c_l`` [N·s/m] (the data determine it even where they cannot split
     it between ``c_q`` and ``c_l``); ``_by_sigma``: per σ band (quantiles :data:`SIGMA_BANDS` of
     the visited σ) its bounds [m/s], number of points, the true quadratic share of the drag, each
     coefficient's and (``drag``) the total drag's maximum relative error."""
@@ -92,9 +92,16 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
     out["_coverage"] = _coverage(points)
     # the total drag coefficient, what the data pin down even where they cannot split it
     body = dataset.constants()
-    drag_got, drag_want = (_drag(c, points[:, 1], body)[1] for c in (got, want))
+    drag_got, drag_want = (drag_terms(c, points[:, 1], body)[1] for c in (got, want))
     rel_drag = np.abs(drag_got - drag_want) / np.maximum(np.abs(drag_want), 1e-12)
-    out["_drag"] = {"mean_rel": float(rel_drag.mean()), "max_rel": float(rel_drag.max())}
+    out["_drag"] = {
+        "mean_rel": float(rel_drag.mean()),
+        "max_rel": float(rel_drag.max()),
+        "learned_min": float(drag_got.min()),
+        "learned_max": float(drag_got.max()),
+        "true_min": float(drag_want.min()),
+        "true_max": float(drag_want.max()),
+    }
     out["_by_sigma"] = _by_sigma(
         points, want, dataset, lambda inside: rel_all[inside].max(axis=0), extra={"drag": rel_drag}
     )
@@ -108,7 +115,7 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
     return out
 
 
-def _drag(
+def drag_terms(
     coefficients: np.ndarray, sigma: np.ndarray, body: dict[str, float]
 ) -> tuple[np.ndarray, np.ndarray]:
     """The quadratic term ``½ρA c_q σ`` and the total drag coefficient ``½ρA c_q σ + c_l``
@@ -140,7 +147,7 @@ def _by_sigma(
     ``coefficients`` ``(P, 4)`` there, ``per_band(inside)`` (one value per coefficient) for
     the points ``inside`` it, and for each ``extra`` name its per-point values' maximum there."""
     sigma = points[:, 1]
-    quad, drag = _drag(coefficients, sigma, dataset.constants())
+    quad, drag = drag_terms(coefficients, sigma, dataset.constants())
     share = quad / np.maximum(drag, 1e-300)
     edges = np.quantile(sigma, SIGMA_BANDS)
     band = np.clip(np.searchsorted(edges, sigma, side="right") - 1, 0, len(edges) - 2)
@@ -164,18 +171,20 @@ def _by_sigma(
 
 def learned_coefficients(learned: EquationsOfMotion, dataset: Dataset) -> dict[str, Any]:
     """The coefficients of a learned model where no truth is known (imported data): per
-    coefficient the median and the range over the ``(r, σ)`` the training data visit (σ in the
-    learned flow); ``_coverage`` as for :func:`coefficient_recovery`; ``_by_sigma``: per σ band its
-    bounds, points, the learned quadratic share of the drag and each coefficient's median."""
+    coefficient, and for the total drag coefficient ``drag`` = ``½ρA c_q σ + c_l`` [N·s/m], the
+    median and the range over the ``(r, σ)`` the training data visit (σ in the learned flow);
+    ``_coverage`` as for :func:`coefficient_recovery`; ``_by_sigma``: per σ band its bounds,
+    points, the learned quadratic share of the drag and each coefficient's median."""
     points = visited_r_sigma(learned, dataset)
     got = np.asarray(coefficients_at(learned.coefficients, jnp.asarray(points)))
+    drag = drag_terms(got, points[:, 1], dataset.constants())[1]
     out: dict[str, Any] = {
         name: {
-            "median": float(np.median(got[:, i])),
-            "learned_min": float(got[:, i].min()),
-            "learned_max": float(got[:, i].max()),
+            "median": float(np.median(values)),
+            "learned_min": float(values.min()),
+            "learned_max": float(values.max()),
         }
-        for i, name in enumerate(COEFFICIENT_NAMES)
+        for name, values in (*zip(COEFFICIENT_NAMES, got.T, strict=True), ("drag", drag))
     }
     out["_coverage"] = _coverage(points)
     out["_by_sigma"] = _by_sigma(points, got, dataset, lambda inside: np.median(got[inside], axis=0))

@@ -4,7 +4,9 @@ as ``coefficients.csv`` and the learned flow on a grid as ``flow.nc``.
 - ``coefficients.csv``: one row per point of a regular ``(r, σ)`` grid over the ranges the
   training data visit, kept where a visited pair lies near (within 5 % of each range, in the
   model's own flow, σ as :func:`~fhnn.evaluation.recovery.visited_r_sigma`); columns ``r, sigma``
-  [m, m/s] then ``m_ax, m_ay, c_q, c_l`` [kg, kg, –, kg/s].
+  [m, m/s] then ``m_ax, m_ay, c_q, c_l`` [kg, kg, –, kg/s] and ``drag``, the total drag
+  coefficient ``½ρA c_q σ + c_l`` [N·s/m] at that σ: what the data determine even where they
+  cannot split it between ``c_q`` and ``c_l``.
 - ``flow.nc``: NetCDF-4 (through xarray, h5netcdf engine) with coordinates ``x``, ``y`` [m] over
   the training positions' bounding box (and ``t`` [s] over the training window for a
   time-dependent flow) and variables ``u``, ``v`` [m/s] and ``psi`` [m²/s] of dims ``(y, x)`` or
@@ -34,6 +36,7 @@ from fhnn.evaluation.recovery import (
     RATIO_NAMES,
     coefficients_at,
     drag_ratios,
+    drag_terms,
     flow_box,
     visited_r_sigma,
     window_times,
@@ -61,18 +64,22 @@ def coefficient_grid(
     eoms: EquationsOfMotion | list[EquationsOfMotion], dataset: Dataset, *, n: int = 40
 ) -> dict[str, np.ndarray]:
     """The learned coefficients over :func:`coefficient_points` (of the first model) as columns
-    ``r, sigma, m_ax, m_ay, c_q, c_l``; for several models (an ensemble) their median, with
-    ``NAME_lo, NAME_hi`` after each ``NAME``."""
+    ``r, sigma`` and :data:`GRID_NAMES` (the coefficients and the total drag); for several models
+    (an ensemble) their median, with ``NAME_lo, NAME_hi`` after each ``NAME``."""
     members = eoms if isinstance(eoms, list) else [eoms]
     grid = coefficient_points(members[0], dataset, n=n)
-    values = member_coefficients(members, grid)
+    values = with_drag(member_coefficients(members, grid), grid, dataset)
     columns = {"r": grid[:, 0], "sigma": grid[:, 1]}
     if len(members) == 1:
-        return {**columns, **{k: values[0, :, i] for i, k in enumerate(COEFFICIENT_NAMES)}}
+        return {**columns, **{k: values[0, :, i] for i, k in enumerate(GRID_NAMES)}}
     median, lo, hi = interval(values)
-    for i, k in enumerate(COEFFICIENT_NAMES):
+    for i, k in enumerate(GRID_NAMES):
         columns.update({k: median[:, i], f"{k}_lo": lo[:, i], f"{k}_hi": hi[:, i]})
     return columns
+
+
+#: The values ``coefficients.csv`` holds per ``(r, σ)``: the coefficients, then the total drag.
+GRID_NAMES = (*COEFFICIENT_NAMES, "drag")
 
 
 def member_coefficients(eoms: list[EquationsOfMotion], points: np.ndarray) -> np.ndarray:
@@ -80,11 +87,20 @@ def member_coefficients(eoms: list[EquationsOfMotion], points: np.ndarray) -> np
     return np.stack([np.asarray(coefficients_at(e.coefficients, jnp.asarray(points))) for e in eoms])
 
 
+def with_drag(values: np.ndarray, points: np.ndarray, dataset: Dataset) -> np.ndarray:
+    """``values`` ``(members, P, 4)`` (coefficients at ``points`` ``(P, 2)``) with the total drag
+    coefficient ``½ρA c_q σ + c_l`` [N·s/m] appended: shape ``(members, P, 5)``."""
+    body = dataset.constants()
+    drag = np.stack([drag_terms(v, points[:, 1], body)[1] for v in values])
+    return np.concatenate([values, drag[..., None]], axis=-1)
+
+
 def ensemble_intervals(
     eoms: list[EquationsOfMotion], dataset: Dataset, truth: EquationsOfMotion | None = None
 ) -> dict[str, dict[str, float]]:
-    """Per coefficient and per identifiable ratio (:data:`~fhnn.evaluation.recovery.RATIO_NAMES`),
-    over :func:`coefficient_points`: the median over the points of the members' median
+    """Per coefficient, for the total drag coefficient (``drag``: ``½ρA c_q σ + c_l``) and per
+    identifiable ratio (:data:`~fhnn.evaluation.recovery.RATIO_NAMES`), over
+    :func:`coefficient_points`: the median over the points of the members' median
     (``median``), of the interval's ends (``lo``, ``hi``) and of its relative width
     ``(hi − lo) / |median|`` (``rel_width``). With ``truth`` also the true median (``true``),
     the fraction of points whose true value lies inside the interval (``coverage``) and the mean
@@ -96,7 +112,11 @@ def ensemble_intervals(
     exact = None if truth is None else member_coefficients([truth], grid)[0]
     out: dict[str, dict[str, float]] = {}
     for names, vals, true in (
-        (COEFFICIENT_NAMES, values, exact),
+        (
+            GRID_NAMES,
+            with_drag(values, grid, dataset),
+            None if exact is None else with_drag(exact[None], grid, dataset)[0],
+        ),
         (RATIO_NAMES, ratios, None if exact is None else drag_ratios(exact, mass)),
     ):
         median, lo, hi = interval(vals)
@@ -209,10 +229,12 @@ def write_flow_netcdf(
 
 
 __all__ = [
+    "GRID_NAMES",
     "coefficient_grid",
     "coefficient_points",
     "ensemble_intervals",
     "member_coefficients",
+    "with_drag",
     "write_coefficients_csv",
     "write_flow_netcdf",
 ]

@@ -14,7 +14,11 @@ Identifiability: the drag force is ``−(½ρA c_q(σ) σ + c_l) v_rel``; if bot
 free functions of ``(r, σ)`` only their combination ``½ρA c_q σ + c_l`` could be learned from data
 (any ``c_l(σ)`` can be traded against ``c_q(σ)``). By default ``c_l`` is therefore one learned
 constant (``linear_drag="constant"``) — it is then the ``σ → 0`` limit of the drag and ``c_q(σ)``
-is identified too; ``linear_drag="net"`` is the paper's form, all four outputs of ``g_φ(r, σ)``.
+is identified too, in principle: data reach down to some least σ only, so how well the two are
+told apart rests on the slowest relative speeds the data hold (``benchmarks/own_data.py``, positions
+only: c_l 8.2 % off with 1 mm noise and still 4.9 % on exact positions, against 1.2 % and 0.26 %
+for the total drag; ``fhnn inspect`` reports the total as ``drag``); ``linear_drag="net"`` is the
+paper's form, all four outputs of ``g_φ(r, σ)``.
 
 Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
 constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
@@ -89,8 +93,8 @@ class FHNNConfig(Config):
         time_dependent: ψ(x, y, t) instead of ψ(x, y); None: from the data set's scenario.
         fluid_inertia: Morison inertia term from the learned ψ; None: from the data set's body.
         init_coefficients: coefficient values the net starts at (its last bias is set so).
-        linear_drag: "constant" (one learned c_l; identifiable) or "net" (c_l(r, σ) from g_φ, as in
-            the paper; only ½ρA c_q σ + c_l is then identifiable).
+        linear_drag: "constant" (one learned c_l: the σ → 0 limit of the drag) or "net"
+            (c_l(r, σ) from g_φ, as in the paper; only ½ρA c_q σ + c_l is then identifiable).
         far_field: "linear" (MLP plus a learned linear flow, penalty on the MLP part) or "none".
         r_extrapolation: "hold" (the coefficient net sees r clipped to the training data's range)
             or "net" (the MLP's own extrapolation, as in the paper).
