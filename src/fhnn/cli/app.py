@@ -809,7 +809,8 @@ def _exports(model: Any, dataset: Any, run_dir: Path) -> list[Path]:
 
 
 def _drag_note(sigma_min: float) -> str:
-    """What the data say about c_q and c_l apart (printed under every coefficient table)."""
+    """What data with known forcing say about c_q and c_l apart (printed under the coefficients;
+    without known forcing the note on the ratios c/(M + m_a) stands instead)."""
     return (
         "note: c_q and c_l share the drag; the data fix their sum, the total drag coefficient "
         "drag = ½ρA c_q σ + c_l [N·s/m], more tightly than the split, which rests on how the drag "
@@ -847,9 +848,10 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
         f"{_fmt(cov['sigma_max'])} m/s; no ground truth: these are estimates, not recovery errors",
         soft_wrap=True,
     )
-    stdout.print(_drag_note(cov["sigma_min"]), soft_wrap=True)
     forced = "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
-    if not forced:
+    if forced:
+        stdout.print(_drag_note(cov["sigma_min"]), soft_wrap=True)
+    else:
         stdout.print(
             "note: no known forcing in the data (no Fx, Fy, or all zero) — the added masses and drag "
             "coefficients above are NOT determined by the data (scaling inertia and drag together "
@@ -910,8 +912,9 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
             cells += [_fmt(r["true"]), f"{r['coverage']:.0%} of points", f"{r['max_rel']:.2%}"]
         table.add_row(*cells)
     stdout.print(table)
-    stdout.print(_drag_note(visited_r_sigma(models[0].eom, dataset)[:, 1].min()), soft_wrap=True)
-    if not forced:
+    if forced:
+        stdout.print(_drag_note(visited_r_sigma(models[0].eom, dataset)[:, 1].min()), soft_wrap=True)
+    else:
         stdout.print(
             "note: no known forcing in the data — the added masses and drag coefficients are NOT "
             "determined by the data; only the ratios c/(M + m_a) are (the members' masses spread "
@@ -989,7 +992,8 @@ def inspect(
         f"{d['max_rel']:.2%}",
     )
     stdout.print(table)
-    stdout.print(_drag_note(coef["_coverage"]["sigma_min"]), soft_wrap=True)
+    if dataset.actuation != "none":  # unforced, even the total drag is fixed only relative to inertia
+        stdout.print(_drag_note(coef["_coverage"]["sigma_min"]), soft_wrap=True)
     bands = Table(
         title="c_q by σ band (quantiles of the visited σ); small quadratic share: c_q weakly constrained",
         title_justify="left",
