@@ -129,7 +129,8 @@ def forecast_errors(
     there), the recorded forces as ``--forcing``, a forecast of ``max(horizons)`` s every 0.05 s;
     RMSE(pos) against the clean truth over the forecast's samples up to each horizon, and the
     Liu–Weisberg skill at the largest."""
-    from fhnn.data.table import read_table
+    import pyarrow.csv as pacsv
+
     from fhnn.evaluation.metrics import liu_weisberg, path_length
 
     ours = np.isin(table["traj_id"].astype(str), ids)
@@ -162,12 +163,17 @@ def forecast_errors(
     step = fine.train.t[1] - fine.train.t[0]
     errors: dict = {h: [] for h in horizons}
     skills = []
-    for tr in read_table(pred_path).trajectories:
-        truth = clean[int(tr.traj_id), np.rint(tr.t / step).astype(int), :2]
-        rel = tr.t - tr.t[0]
+    pred = pacsv.read_csv(pred_path).to_pydict()
+    pred_ids = np.asarray(pred["traj_id"]).astype(str)
+    for traj in dict.fromkeys(pred_ids):
+        mine = pred_ids == traj
+        t = np.asarray(pred["t"])[mine]
+        pos = np.stack([np.asarray(pred["x"])[mine], np.asarray(pred["y"])[mine]], axis=1)
+        truth = clean[int(traj), np.rint(t / step).astype(int), :2]
+        rel = t - t[0]
         for h in horizons:
-            errors[h].append(tr.pos[(rel > 0) & (rel <= h + 1e-9)] - truth[(rel > 0) & (rel <= h + 1e-9)])
-        sep = np.linalg.norm(tr.pos[1:] - truth[1:], axis=1)
+            errors[h].append(pos[(rel > 0) & (rel <= h + 1e-9)] - truth[(rel > 0) & (rel <= h + 1e-9)])
+        sep = np.linalg.norm(pos[1:] - truth[1:], axis=1)
         skills.append(liu_weisberg(sep, path_length(truth)[1:]))
     return {
         "seconds": seconds,
@@ -176,7 +182,44 @@ def forecast_errors(
             f"{h:g}": float(np.sqrt(np.mean(np.concatenate(errors[h]) ** 2))) for h in horizons
         },
         "liu_weisberg_skill": float(np.mean(skills)),
+        # the band from the uncertainty of each fitted start state (one model: no members)
+        **({"forecast_band": band_scores(pred, fine)} if "x_lo" in pred else {}),
     }
+
+
+def band_scores(pred: dict, fine: Dataset) -> dict:
+    """How often the band of ``fhnn predict``'s output ``pred`` (columns by name, with ``x_lo``
+    … ``y_hi``) holds the clean truth of ``fine``: over every forecast time after the start, at
+    1 s and 5 s, and the band's median diagonal there [m]."""
+    clean = np.concatenate([fine[name].states_clean for name in ("train", "val", "test")])
+    step = fine.train.t[1] - fine.train.t[0]
+    ids = np.asarray(pred["traj_id"]).astype(int)
+    t = np.asarray(pred["t"])
+    truth = clean[ids, np.rint(t / step).astype(int), :2]
+    inside = np.ones(len(t), bool)
+    for j, c in enumerate(("x", "y")):
+        inside &= (np.asarray(pred[f"{c}_lo"]) <= truth[:, j]) & (truth[:, j] <= np.asarray(pred[f"{c}_hi"]))
+    width = np.hypot(
+        np.asarray(pred["x_hi"]) - np.asarray(pred["x_lo"]),
+        np.asarray(pred["y_hi"]) - np.asarray(pred["y_lo"]),
+    )
+    start_t = {i: t[ids == i].min() for i in np.unique(ids)}
+    rel = t - np.asarray([start_t[i] for i in ids])
+    at = {h: np.isclose(rel, h) for h in (1.0, 5.0)}
+    return {
+        "truth_inside_share": float(np.mean(inside[rel > 0])),
+        "truth_inside_share_at": {f"{h:g}": float(np.mean(inside[m])) for h, m in at.items()},
+        "median_band_diagonal_at": {f"{h:g}": float(np.median(width[m])) for h, m in at.items()},
+    }
+
+
+def band_text(fb: dict) -> str:
+    """:func:`band_scores` in a line."""
+    return (
+        f"holds the truth at {fb['truth_inside_share']:.0%} of forecast positions "
+        f"(1 s: {fb['truth_inside_share_at']['1']:.0%}, 5 s: {fb['truth_inside_share_at']['5']:.0%}); "
+        f"median band diagonal at 5 s {fb['median_band_diagonal_at']['5']:.2e} m"
+    )
 
 
 def validation_forecast(run: Path, table: dict, ids: list[str], folder: Path) -> dict:
@@ -277,8 +320,9 @@ def ensemble_scores(
 
     import pyarrow.csv as pacsv
 
+    from fhnn.errors import DataFormatError
     from fhnn.experiments.exports import ensemble_intervals
-    from fhnn.training.ensemble import member_folder, member_folders
+    from fhnn.training.ensemble import is_ensemble, member_folder, member_folders
 
     ens = out / f"ens{n}_{run.name}"
     first = member_folder(ens, 0)
@@ -288,7 +332,10 @@ def ensemble_scores(
         info = json.loads((first / "run.json").read_text())
         info["data"] = os.path.relpath(data.resolve(), first.resolve())
         (first / "run.json").write_text(json.dumps(info, indent=1))
-    members = member_folders(ens)
+    try:  # every member trained already (by an earlier invocation)?
+        members = member_folders(ens) if is_ensemble(ens) else []
+    except DataFormatError:  # a member not trained yet
+        members = []
     done = len(members) == n and all(Run.load(f).finished for f in members)
     start = time.perf_counter()
     run_cli("train", str(data), "-o", str(ens), "--seeds", str(n), "-q", *sets)
@@ -302,30 +349,11 @@ def ensemble_scores(
     folder.mkdir(exist_ok=True)
     forecast_errors(ens, table, fine, list(record["traj_ids"]["test"]), folder, (1.0, 5.0), read=False)
     band = pacsv.read_csv(folder / "forecast.csv").to_pydict()
-    clean = np.concatenate([fine[name].states_clean for name in ("train", "val", "test")])
-    step = fine.train.t[1] - fine.train.t[0]
-    ids = np.asarray(band["traj_id"]).astype(int)
-    t = np.asarray(band["t"])
-    truth = clean[ids, np.rint(t / step).astype(int), :2]
-    inside = np.ones(len(t), bool)
-    for j, c in enumerate(("x", "y")):
-        inside &= (np.asarray(band[f"{c}_lo"]) <= truth[:, j]) & (truth[:, j] <= np.asarray(band[f"{c}_hi"]))
-    width = np.hypot(
-        np.asarray(band["x_hi"]) - np.asarray(band["x_lo"]),
-        np.asarray(band["y_hi"]) - np.asarray(band["y_lo"]),
-    )
-    start_t = {i: t[ids == i].min() for i in np.unique(ids)}
-    rel = t - np.asarray([start_t[i] for i in ids])
-    at = {h: np.isclose(rel, h) for h in (1.0, 5.0)}
     return {
         "members": n,
         "train_seconds": seconds,
         "intervals": rows,
-        "forecast_band": {
-            "truth_inside_share": float(np.mean(inside[rel > 0])),
-            "truth_inside_share_at": {f"{h:g}": float(np.mean(inside[m])) for h, m in at.items()},
-            "median_band_diagonal_at": {f"{h:g}": float(np.median(width[m])) for h, m in at.items()},
-        },
+        "forecast_band": band_scores(band, fine),
     }
 
 
@@ -494,6 +522,8 @@ def main() -> None:
         f"(target 5e-3), Liu-Weisberg skill {forecasts['liu_weisberg_skill']:.3f} "
         f"({forecasts['trajectories']} trajectories)"
     )
+    if "forecast_band" in forecasts:
+        print("  its band (the fitted start states' uncertainty): " + band_text(forecasts["forecast_band"]))
     print(
         "fhnn predict from 1 s of each validation track, against its observations (no truth): RMSE(pos) "
         + ", ".join(f"at {h} s {v:.2e} m" for h, v in val_forecasts["rmse_pos_vs_observed"].items())
@@ -507,12 +537,7 @@ def main() -> None:
                 f"(width {r['rel_width']:.1%}, target ≤ 10 %)  true {r['true']:.4g}  truth inside at "
                 f"{r['coverage']:.0%} of points (target ≥ 90 %)  median error {r['mean_rel']:.2%}"
             )
-        fb = e["forecast_band"]
-        print(
-            f"  forecast band holds the truth at {fb['truth_inside_share']:.0%} of forecast positions "
-            f"(1 s: {fb['truth_inside_share_at']['1']:.0%}, 5 s: {fb['truth_inside_share_at']['5']:.0%}); "
-            f"median band diagonal at 5 s {fb['median_band_diagonal_at']['5']:.2e} m"
-        )
+        print("  forecast band (members and start states): " + band_text(e["forecast_band"]))
     if "import_speed" in result:
         s = result["import_speed"]
         print(

@@ -22,7 +22,7 @@ from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_t
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_metrics
-from fhnn.evaluation.predict import estimate_states, forecast
+from fhnn.evaluation.predict import Forecast, estimate_states, forecast, predict_tracks
 from fhnn.evaluation.recovery import RATIO_NAMES, coefficient_recovery, drag_ratios
 from fhnn.experiments.exports import write_coefficients_csv, write_flow_netcdf
 from fhnn.models.base import AbstractVectorField
@@ -307,7 +307,16 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
         )
     assert info.value.code == 0
     assert "fitted 12 track(s): RMS position residual median" in capsys.readouterr().err
-    pred = read_table(folder / "pred.parquet")
+    import pyarrow.parquet as pq
+
+    columns = pq.read_table(folder / "pred.parquet").to_pydict()
+    # the band from each fitted start state's uncertainty (fhnn predict --samples, default 32)
+    band = {c: np.asarray(columns.pop(c)) for c in [c for c in columns if c.endswith(("_lo", "_hi"))]}
+    assert sorted(band) == sorted(f"{c}_{e}" for c in ("x", "y", "vx", "vy") for e in ("lo", "hi"))
+    later = np.asarray(columns["t"]) > np.repeat([h.t[-1] for h in history.trajectories], 11) + 1e-9
+    assert np.all(band["x_lo"] <= band["x_hi"]) and np.all((band["x_hi"] - band["x_lo"])[later] > 0)
+    write_table(columns, folder / "pred_plain.parquet")
+    pred = read_table(folder / "pred_plain.parquet")
     assert [p.traj_id for p in pred.trajectories] == [h.traj_id for h in history.trajectories]
     for p, h in zip(pred.trajectories, history.trajectories, strict=True):
         np.testing.assert_allclose(p.t, h.t[-1] + np.linspace(0.0, 1.0, 11), atol=1e-12)
@@ -484,6 +493,62 @@ def test_estimated_state_is_the_one_the_positions_came_from(fine, rng) -> None:
     np.testing.assert_allclose(rms_again, rms, rtol=1e-9)
     with pytest.raises(ValueError, match="at least 3 observed positions"):
         estimate_states(truth, t[:, :2], clean[:, :2, :2])
+
+
+def test_the_fitted_state_s_covariance_is_its_spread_over_noise_draws(fine, rng) -> None:
+    """The covariance estimate_states reports is what the state actually scatters by: 400 noisy
+    copies of one second of a track, fitted with the true model — the states' empirical covariance
+    matches the mean reported one, and the squared Mahalanobis distances average 4 (χ², 4 dof)."""
+    split = _ragged(fine.test, rng)
+    t, clean, force, mask = _first_seconds(split, 1.0)
+    truth = _Forced(fine.equations(), jnp.asarray(split.actuation[0]))
+    copies = 400
+    k = int(mask[0].sum())
+    rep = lambda a: np.repeat(a[:1, :k], copies, axis=0)  # noqa: E731
+    noisy = rep(clean)[..., :2] + rng.normal(0.0, NOISE, (copies, k, 2))
+    states, _, cov = estimate_states(truth, rep(t), noisy, force=rep(force), covariance=True)
+    assert cov.shape == (copies, 4, 4) and np.allclose(cov, cov.swapaxes(1, 2), rtol=1e-6, atol=0)
+    err = states - clean[0, k - 1]
+    spread = np.cov(err.T)
+    reported = cov.mean(axis=0)
+    ratio = np.diag(spread) / np.diag(reported)
+    assert np.all((0.8 < ratio) & (ratio < 1.25)), ratio  # 400 draws: ±14 % at 2σ
+    d2 = np.einsum("ni,nij,nj->n", err, np.linalg.inv(cov), err)
+    assert 3.6 < d2.mean() < 4.45, d2.mean()  # mean of χ²(4) over 400 draws: 4 ± 0.14 (1σ)
+    # the same fits without asking for the covariance: the same states
+    again, _ = estimate_states(truth, rep(t)[:5], noisy[:5], force=rep(force)[:5])
+    np.testing.assert_allclose(again, states[:5], rtol=0, atol=1e-12)
+
+
+def test_a_forecast_from_a_history_bands_the_fit_s_uncertainty(fine, rng, tmp_path) -> None:
+    """Forecasts from observed tracks: start states drawn from each fit's covariance spread the
+    forecast; with the true model the band (5th–95th percentile) holds the true path about 90 % of
+    the time, and no samples means no band."""
+    split, copies = fine.test, 40
+    truth = _Forced(fine.equations(), jnp.asarray(split.actuation[0]))
+    seen = np.flatnonzero(split.t <= 1.0 + 1e-9)[::5]  # 1 s every 0.05 s
+    noise = rng.normal(0.0, NOISE, (copies, seen.size, 2))
+    tracks = {
+        "traj_id": np.repeat(np.arange(copies), seen.size),
+        "t": np.tile(split.t[seen], copies),
+        "x": (split.states_clean[0, seen, 0] + noise[..., 0]).ravel(),
+        "y": (split.states_clean[0, seen, 1] + noise[..., 1]).ravel(),
+    }
+    history = read_table(write_table(tracks, tmp_path / "history.csv"))
+    result = predict_tracks(truth, duration=3.0, dt=0.05, history=history, samples=64)
+    assert result.samples is not None and result.samples.shape == (64, copies, 61, 4)
+    banded = Forecast.of_ensemble([result], (5.0, 95.0))
+    np.testing.assert_array_equal(banded.states, result.states)  # the forecast itself is unchanged
+    want = split.states_clean[0, seen[-1] :: 5][:61]  # the truth on the forecast's times
+    inside = (banded.band[0] <= want) & (want <= banded.band[1])
+    share = inside[:, 1:, :2].mean()
+    width = np.median(banded.band[1, :, -1, :2] - banded.band[0, :, -1, :2])
+    error = np.median(np.abs(result.states[:, -1, :2] - want[-1, :2]))
+    assert 0.75 < share <= 1.0, share
+    # and it is as wide as the errors call for: for a normal error a 90 % band spans 3.29 σ and the
+    # median absolute error is 0.674 σ, a ratio of 4.9
+    assert 2.5 < width / error < 8.0, (width, error)
+    assert predict_tracks(truth, duration=3.0, dt=0.05, history=history, samples=0).samples is None
 
 
 def test_forecast_from_a_state_follows_the_truth_with_interpolated_forces(fine) -> None:

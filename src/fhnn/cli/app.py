@@ -26,6 +26,7 @@ from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
+from fhnn.evaluation.predict import SAMPLES
 from fhnn.files import check_new_folder, check_output_path
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
@@ -714,6 +715,14 @@ def predict(
             "--fit-window", help="Seconds of each history the start state is fitted to [default: 1]."
         ),
     ] = None,
+    samples: Annotated[
+        int,
+        typer.Option(
+            "--samples",
+            help="Start states drawn from each fitted track's uncertainty and forecast for the band "
+            "(with --history; 0: none).",
+        ),
+    ] = SAMPLES,
     output: Annotated[
         Path | None,
         typer.Option(
@@ -722,10 +731,11 @@ def predict(
     ] = None,
 ) -> None:
     """Forecast with a trained model from a given state or from the end of observed tracks: columns
-    traj_id, t, x, y, vx, vy; for an ensemble (fhnn train --seeds N) the members' median, then
-    x_lo, x_hi, y_lo, … (their 5th and 95th percentiles). A history's start state is the one the
-    model explains best (a least squares fit of its trajectory to the last observed positions), not
-    a smoother's end point."""
+    traj_id, t, x, y, vx, vy; with a band — from an ensemble (fhnn train --seeds N), from
+    --history, or both — then x_lo, x_hi, y_lo, … (5th and 95th percentiles over the members'
+    forecasts and those from start states drawn from each fit's uncertainty; x, y, … are the
+    members' median). A history's start state is the one the model explains best (a least squares
+    fit of its trajectory to the last observed positions), not a smoother's end point."""
     from fhnn.data.table import check_table_name, read_forcing, read_table, write_table
     from fhnn.evaluation.predict import FIT_WINDOW, Forecast, predict_tracks
     from fhnn.models.base import AbstractVectorField
@@ -772,10 +782,12 @@ def predict(
             history=tracks,
             forcing_table=forces,
             fit_window=FIT_WINDOW if fit_window is None else fit_window,
+            samples=samples,
         )
         for model in models
     ]
-    result = forecasts[0] if len(forecasts) == 1 else Forecast.of_ensemble(forecasts, INTERVAL)
+    banded = len(forecasts) > 1 or forecasts[0].samples is not None
+    result = Forecast.of_ensemble(forecasts, INTERVAL) if banded else forecasts[0]
     if forces is None:
         err.print("note: no --forcing: the forecast assumes no external force", highlight=False)
     if tracks is not None:

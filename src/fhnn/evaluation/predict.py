@@ -52,11 +52,16 @@ def _fit(
     mask: Array,
     force: Array,
     last: Array,
-) -> tuple[Array, Array]:
+) -> tuple[Array, Array, Array]:
     """Per track: the start state minimising the masked squared position residuals, and the
-    model's state at the track's last real sample ``last``; also the RMS residual [m]."""
+    model's state at the track's last real sample ``last``; also the RMS residual [m] and the
+    covariance ``(4, 4)`` of that state: the fit's ``σ² (JᵀJ)⁻¹`` (σ² the residuals' variance
+    with 4 degrees of freedom taken by the fit) carried to the last sample by the Jacobian of the
+    model's trajectory."""
 
-    def one(s0: Array, tt: Array, ff: Array, p: Array, m: Array, fk: Array, k: Array) -> tuple[Array, Array]:
+    def one(
+        s0: Array, tt: Array, ff: Array, p: Array, m: Array, fk: Array, k: Array
+    ) -> tuple[Array, Array, Array]:
         f = lambda s, time: model(s, time, forcing(jnp.zeros((2, 3, 3)), time, tt, fk))  # noqa: E731
         # one scale for both coordinates, over the real samples only: the noise is isotropic, so x
         # and y residuals weigh alike (only conditioning depends on it, not the minimiser)
@@ -83,7 +88,11 @@ def _fit(
         states = path(s_fit)
         res = (states[:, :2] - p) * m[:, None]
         rms = jnp.sqrt(jnp.sum(res**2) / (2 * jnp.sum(m)))
-        return states[k], rms
+        jac = jax.jacfwd(residual)(s_fit)
+        variance = jnp.sum(residual(s_fit) ** 2) / jnp.maximum(2 * n - 4, 1)
+        cov_start = variance * jnp.linalg.pinv(jac.T @ jac)
+        carry = jax.jacfwd(lambda s: path(s)[k])(s_fit)
+        return states[k], rms, carry @ cov_start @ carry.T
 
     return jax.vmap(one)(guess, t, fine, pos, mask, force, last)
 
@@ -96,7 +105,8 @@ def estimate_states(
     mask: np.ndarray | None = None,
     force: np.ndarray | None = None,
     guess_velocity: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+    covariance: bool = False,
+) -> tuple[np.ndarray, ...]:
     """The model's state at the last real sample of each observed track.
 
     Args:
@@ -108,11 +118,13 @@ def estimate_states(
         force: known external forces [N] at the samples, ``(N, K, 2)`` (default: none).
         guess_velocity: a first guess of each track's velocity at its first sample [m/s],
             ``(N, 2)`` (default: the finite difference of its first two samples).
+        covariance: also return each state's covariance.
 
     Returns:
         ``(states, rms)``: states ``(N, 4)`` [m, m, m/s, m/s] at each track's last real sample and
         the RMS position residual [m] of each fit (about the noise when the model explains the
-        track).
+        track); with ``covariance`` also ``cov`` ``(N, 4, 4)``, the states' covariance from the
+        fit (the residuals' spread through the linearised fit, carried to the last sample).
     """
     t = np.asarray(t, dtype=float)
     pos = np.asarray(pos, dtype=float)
@@ -132,7 +144,7 @@ def estimate_states(
         guess_velocity = (pos[:, 1] - pos[:, 0]) / (t[:, 1:2] - t[:, :1])
     guess = np.concatenate([pos[:, 0], guess_velocity], axis=1)
     pos = np.where(mask[..., None], pos, 0.0)
-    states, rms = _fit(
+    states, rms, cov = _fit(
         model,
         jnp.asarray(guess),
         jnp.asarray(t),
@@ -142,6 +154,8 @@ def estimate_states(
         jnp.asarray(force),
         jnp.asarray(counts - 1),
     )
+    if covariance:
+        return np.asarray(states), np.asarray(rms), np.asarray(cov)
     return np.asarray(states), np.asarray(rms)
 
 
@@ -172,11 +186,18 @@ def forecast(
 FIT_WINDOW = 1.0
 
 
+#: Start states drawn per fitted track from the fit's uncertainty (:func:`estimate_states`'s
+#: covariance), each forecast too, for the band of :meth:`Forecast.of_ensemble`.
+SAMPLES = 32
+
+
 @dataclasses.dataclass(frozen=True)
 class Forecast:
     """Forecasts of named tracks: ``t`` ``(N, T)`` [s], ``states`` ``(N, T, 4)``, ``ok`` ``(N,)``,
-    the fitted history's RMS position residual ``fit_rms`` ``(N,)`` [m] (NaN without a history);
-    for an ensemble's forecast ``states`` is the members' median and ``band`` the states at the
+    the fitted history's RMS position residual ``fit_rms`` ``(N,)`` [m] (NaN without a history),
+    and ``samples`` ``(S, N, T, 4)``: forecasts from start states drawn from the fit's
+    uncertainty (NaN where one diverged; ``None`` without a history). For a band
+    (:meth:`of_ensemble`) ``states`` is the members' median and ``band`` the states at the
     interval's two percentiles, ``(2, N, T, 4)``."""
 
     ids: list[str]
@@ -185,19 +206,23 @@ class Forecast:
     ok: np.ndarray
     fit_rms: np.ndarray
     band: np.ndarray | None = None
+    samples: np.ndarray | None = None
 
     @classmethod
     def of_ensemble(cls, members: list[Forecast], percentiles: tuple[float, float]) -> Forecast:
-        """The members' median forecast with the ``percentiles`` band; a track is ok where every
-        member's is (a diverged member makes the band meaningless)."""
+        """The members' median forecast with the ``percentiles`` band over every member's
+        forecast and its start-state samples (so one model with samples gets a band too, from
+        the uncertainty of its start); a track is ok where every member's is (a diverged member
+        makes the band meaningless)."""
         states = np.stack([m.states for m in members])
+        pool = np.concatenate([states, *(m.samples for m in members if m.samples is not None)])
         return cls(
             ids=members[0].ids,
             t=members[0].t,
             states=np.median(states, axis=0),
             ok=np.all([m.ok for m in members], axis=0),
             fit_rms=np.median([m.fit_rms for m in members], axis=0),
-            band=np.percentile(states, percentiles, axis=0),
+            band=np.nanpercentile(pool, percentiles, axis=0),
         )
 
     def columns(self) -> dict[str, np.ndarray]:
@@ -258,6 +283,8 @@ def predict_tracks(
     history: Table | None = None,
     forcing_table: dict[str | None, tuple[np.ndarray, np.ndarray]] | None = None,
     fit_window: float = FIT_WINDOW,
+    samples: int = SAMPLES,
+    seed: int = 0,
 ) -> Forecast:
     """Forecast ``duration`` [s] on a grid of about ``dt`` [s], either from one given ``initial``
     state ``(4,)`` at ``t0`` [s] (track id ``"initial"``), or from the end of each track of an
@@ -265,7 +292,9 @@ def predict_tracks(
     :func:`estimate_states` from its last ``fit_window`` seconds (its measured velocities, if
     any, are the first guess; its ``Fx, Fy``, else the forcing table where it covers them, are the
     forces during the fit). Forces during the forecast come from ``forcing_table``
-    (:func:`~fhnn.data.table.read_forcing`), which must then cover it; without one there are none."""
+    (:func:`~fhnn.data.table.read_forcing`), which must then cover it; without one there are none.
+    From a history, ``samples`` further start states per track are drawn (seeded by ``seed``) from
+    the normal distribution of the fit's covariance and forecast too (``Forecast.samples``)."""
     if not (np.isfinite(duration) and duration > 0):
         raise ConfigError(f"--duration must be > 0 s, got {duration!r}")
     if not (np.isfinite(dt) and 0 < dt <= duration):
@@ -274,7 +303,10 @@ def predict_tracks(
         raise ConfigError(f"--fit-window must be > 0 s, got {fit_window!r}")
     if (initial is None) == (history is None):
         raise ConfigError("give either an initial state or a history to start from, not both")
+    if samples < 0:
+        raise ConfigError(f"--samples must be >= 0, got {samples}")
     fit_rms: np.ndarray
+    cov: np.ndarray | None = None
     if initial is not None:
         initial = np.asarray(initial, dtype=float)
         if initial.shape != (4,) or not np.all(np.isfinite(initial)):
@@ -313,7 +345,9 @@ def predict_tracks(
             if f is not None:
                 force[i, :k] = f
             guess[i] = tr.vel[keep][0] if tr.vel is not None else (pos[i, 1] - pos[i, 0]) / (tt[1] - tt[0])
-        starts, fit_rms = estimate_states(model, t, pos, mask=mask, force=force, guess_velocity=guess)
+        starts, fit_rms, cov = estimate_states(
+            model, t, pos, mask=mask, force=force, guess_velocity=guess, covariance=True
+        )
         start_t = np.array([tr.t[-1] for tr in history.trajectories])
     steps = max(1, round(duration / dt))
     times = start_t[:, None] + np.linspace(0.0, duration, steps + 1)[None, :]
@@ -323,4 +357,15 @@ def predict_tracks(
         if f is not None:
             forces[i] = f
     states, ok = forecast(model, starts, times, forces)
-    return Forecast(ids=ids, t=times, states=states, ok=ok, fit_rms=fit_rms)
+    drawn = None
+    if cov is not None and samples > 0:
+        rng = np.random.default_rng(seed)
+        n = len(ids)
+        sym = 0.5 * (cov + cov.swapaxes(1, 2))
+        starts_s = np.stack(
+            [rng.multivariate_normal(starts[i], sym[i], samples, method="eigh") for i in range(n)], axis=1
+        )
+        rep = lambda a: np.broadcast_to(a, (samples, *a.shape)).reshape(-1, *a.shape[1:])  # noqa: E731
+        out, fine = forecast(model, starts_s.reshape(-1, 4), rep(times), rep(forces))
+        drawn = np.where(fine[:, None, None], out, np.nan).reshape(samples, n, *out.shape[1:])
+    return Forecast(ids=ids, t=times, states=states, ok=ok, fit_rms=fit_rms, samples=drawn)
