@@ -13,7 +13,8 @@ Every step is the command a user types (printed before it runs):
 4. ``fhnn inspect``: added masses, drag and flow with medians and 90 % intervals;
    ``coefficients.csv`` and ``flow.nc`` for other tools.
 5. ``fhnn predict``: from the first second of each held-out track (its state fitted there) with
-   the known thrust, 5 s ahead, with the ensemble's band.
+   the known thrust, 5 s ahead, with a band over the ensemble's members and each fitted start
+   state's uncertainty.
 6. A picture of the forecasts against the truth (``forecast.png``), beside the learned flow and
    coefficients that ``inspect`` drew.
 
