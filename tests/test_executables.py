@@ -133,6 +133,11 @@ def test_what_has_no_stable_key_is_called_as_it_is(store, tmp_path, monkeypatch)
 
         np.testing.assert_array_equal(np.asarray(StoredProgram(scaled)(x)), np.asarray(x * k + 0.5))
     assert list(store.iterdir()) == []
+    inner = StoredProgram(program)  # inside a traced program its arguments are tracers
+    args = arguments()
+    traced = jax.jit(lambda x: inner(args[0], x, args[2], False)[1]["y"])(args[1])
+    np.testing.assert_array_equal(np.asarray(traced), np.asarray(program(*args)[1]["y"]))
+    assert inner.stored == 0 and list(store.iterdir()) == []
     monkeypatch.setattr(executables, "store_folder", lambda: None)  # no compilation cache folder
     plain = StoredProgram(program)
     assert_same(plain(*arguments()), program(*arguments()))

@@ -16,9 +16,11 @@ calling the function. (A function's own bytecode is hashed, not that of function
 outside this package: after changing such a function, delete ``executables/``.)
 
 Arrays are the program's arguments; everything else is part of the key. The wrapped function is
-called as it is — no file written or read — when no compilation cache folder is set or when a
-signature cannot be keyed (a non-array argument that cannot be pickled, a function with a
-closure); a program whose output holds a function made inside it is compiled but not written.
+called as it is — no file written or read — when no compilation cache folder is set, inside a
+traced program, or when a signature cannot be keyed (a non-array argument that cannot be pickled,
+a function with a closure); a program whose output holds a function made inside it, or whose
+executable holds Python callbacks (Diffrax's error checks: the rollouts), is compiled but not
+written.
 A stored file that cannot be read or run is deleted and the program compiled again.
 """
 
@@ -223,6 +225,8 @@ class StoredProgram:
         if folder is None or self._identity is None:
             return self.fn(*args)
         tree, mask, arrays, others = _split(args)
+        if any(isinstance(x, jax.core.Tracer) for x in arrays):  # called inside a traced program
+            return self.fn(*args)
         avals = tuple((x.shape, x.dtype, getattr(x, "weak_type", False)) for x in arrays)
         signature = (self.fn, tree, mask, others, avals)
         if self._last is not None and self._last[0] == signature:
