@@ -47,6 +47,7 @@ def run_quick(out: Path, cache: Path, workers: int | None) -> float:
     done = subprocess.run(cmd, env=env, capture_output=True, text=True)
     seconds = time.perf_counter() - t0
     if done.returncode != 0:
+        sys.stderr.write(done.stderr)  # the whole of it: a worker that died says why
         sys.exit(f"fhnn reproduce --quick failed: {done.stderr.strip().splitlines()[-1:]}")
     return seconds
 
