@@ -820,6 +820,12 @@ def _exports(model: Any, dataset: Any, run_dir: Path) -> list[Path]:
     ]
 
 
+def _known_forcing(dataset: Any) -> bool:
+    """Whether the training data carry measured, non-zero external forces: only then are the
+    added masses and drag coefficients determined, not just their ratios c/(M + m_a)."""
+    return "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
+
+
 def _drag_note(sigma_min: float) -> str:
     """What data with known forcing say about c_q and c_l apart (printed under the coefficients;
     without known forcing the note on the ratios c/(M + m_a) stands instead)."""
@@ -860,7 +866,7 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
         f"{_fmt(cov['sigma_max'])} m/s; no ground truth: these are estimates, not recovery errors",
         soft_wrap=True,
     )
-    forced = "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
+    forced = _known_forcing(dataset)
     if forced:
         stdout.print(_drag_note(cov["sigma_min"]), soft_wrap=True)
     else:
@@ -894,7 +900,7 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
         write_coefficients_csv([m.eom for m in models], dataset, folder / "coefficients.csv"),
         write_flow_netcdf([m.flow for m in models], dataset, folder / "flow.nc"),
     ]
-    forced = "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
+    forced = _known_forcing(dataset)
     # identifiability from the spread: without known forces inertia and drag scale together, so
     # the members agree on the ratios c/(M + m_a) far better than on the masses themselves
     mass_width = max(rows[n]["rel_width"] for n in ("m_ax", "m_ay"))
