@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import fhnn.executables as executables
 import fhnn.training.trainer as trainer_module
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.errors import ConfigError
@@ -38,7 +39,9 @@ def fresh(data, seed=0, **model):
 
 @pytest.fixture
 def traces(monkeypatch):
-    """A list that grows by one each time the trainer's loss is traced (run in Python)."""
+    """A list that grows by one each time the trainer's loss is traced (run in Python). Stored
+    executables are off: one another test or process stored would be loaded untraced."""
+    monkeypatch.setattr(executables, "store_folder", lambda: None)
     calls = []
     original = trainer_module.loss_terms
 

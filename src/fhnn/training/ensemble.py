@@ -8,7 +8,7 @@ Folder layout (``fhnn train DATA -o OUT --seeds N``)::
 The members are trained one after another in one process: they have the same shapes and
 configuration, so the first member's compiled programs serve every other member (nothing is
 traced or compiled again). Training them as one ``vmap``-ed program was measured on the 2-core
-CPU (``benchmarks/training_speed.py``): 1.11× the throughput of sequential steps — a batch-256
+CPU (``benchmarks/training_speed.py``): 1.16× the throughput of sequential steps — a batch-256
 step already keeps both cores busy — so sequential members cost the same and each stays an
 ordinary run that can be resumed, inspected or evaluated on its own.
 
