@@ -132,3 +132,31 @@ def test_write_is_atomic(dataset, tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []  # neither the target nor a temporary file
     with pytest.raises(DataFormatError, match="output folder .* does not exist"):
         write_dataset(dataset, tmp_path / "missing" / "d.h5")
+
+
+def test_force_residual_is_the_recorded_force_less_the_sinusoids_of_jax_actuation_force():
+    """The NumPy residual against the model's own JAX sinusoids: zero (exactly) where the forces
+    are those sinusoids, the recorded forces where a trajectory has no sinusoids, the difference
+    elsewhere; per-trajectory times."""
+    import jax
+    import jax.numpy as jnp
+
+    from fhnn.physics.actuation import actuation_force, force_residual, sample_actuation
+
+    rng = np.random.default_rng(3)
+    params = sample_actuation(rng, 3)
+    params[1] = 0.0  # forcing known only as samples
+    t = np.sort(rng.uniform(0.0, 30.0, (3, 50)), axis=1)
+    sinusoids = np.asarray(
+        jax.vmap(jax.vmap(actuation_force, in_axes=(None, 0)))(jnp.asarray(params), jnp.asarray(t))
+    )
+    forces = sinusoids.copy()
+    forces[1] = rng.normal(size=(50, 2))
+    forces[2, 7] += [0.25, -0.5]
+    residual = force_residual(params, t, forces)
+    assert np.all(residual[0] == 0.0)
+    np.testing.assert_array_equal(residual[1], forces[1])
+    expected = np.zeros((50, 2))
+    expected[7] = [0.25, -0.5]
+    np.testing.assert_allclose(residual[2], expected, rtol=0, atol=1e-12)
+    assert np.count_nonzero(residual[2]) == 2

@@ -25,7 +25,7 @@ from fhnn.data.dataset import Dataset
 from fhnn.data.summary import relative_speeds
 from fhnn.physics.body import COEFFICIENT_NAMES, AbstractCoefficients
 from fhnn.physics.dynamics import EquationsOfMotion
-from fhnn.physics.flows import AbstractFlow
+from fhnn.physics.flows import AbstractFlow, velocity_field
 
 
 def visited_r_sigma(eom: EquationsOfMotion, dataset: Dataset, *, max_points: int = 20000) -> np.ndarray:
@@ -245,11 +245,8 @@ def flow_recovery(
     else:
         times = np.zeros(1)
     grid = jnp.asarray(flow_grid(dataset))
-    on_grid = jax.vmap(
-        jax.vmap(lambda f, x, tt: f.velocity(x, tt), in_axes=(None, 0, None)), in_axes=(None, None, 0)
-    )
-    u_hat = np.asarray(on_grid(learned, grid, jnp.asarray(times)))
-    u = np.asarray(on_grid(truth, grid, jnp.asarray(times)))
+    u_hat = np.asarray(velocity_field(learned, grid, jnp.asarray(times)))
+    u = np.asarray(velocity_field(truth, grid, jnp.asarray(times)))
     return {
         "rel_l2": float(np.linalg.norm(u_hat - u) / max(np.linalg.norm(u), 1e-300)),
         "points": int(grid.shape[0]),

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import jax
 import jax.numpy as jnp
 import matplotlib
 
@@ -17,10 +16,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from fhnn.data.dataset import Dataset
-from fhnn.evaluation.recovery import flow_recovery, visited_r_sigma
+from fhnn.evaluation.recovery import coefficients_at, flow_recovery, visited_r_sigma
 from fhnn.physics.body import COEFFICIENT_NAMES, AbstractCoefficients
 from fhnn.physics.dynamics import EquationsOfMotion
-from fhnn.physics.flows import AbstractFlow
+from fhnn.physics.flows import AbstractFlow, velocity_field
 
 UNITS = {"m_ax": "kg", "m_ay": "kg", "c_q": "-", "c_l": "N·s/m"}
 
@@ -38,7 +37,7 @@ def _save(fig: plt.Figure, path: Path, formats: tuple[str, ...]) -> list[Path]:
 def _velocity_grid(flow: AbstractFlow, xs: np.ndarray, ys: np.ndarray, t: float) -> np.ndarray:
     gx, gy = np.meshgrid(xs, ys)
     pts = jnp.asarray(np.column_stack([gx.ravel(), gy.ravel()]))
-    u = np.asarray(jax.vmap(flow.velocity, in_axes=(0, None))(pts, t))
+    u = np.asarray(velocity_field(flow, pts, jnp.asarray([float(t)]))[0])
     return u.reshape(ys.size, xs.size, 2)
 
 
@@ -124,8 +123,8 @@ def coefficient_figure(
     eom = dataset.equations() if flow_of is None else flow_of
     points = visited_r_sigma(eom, dataset, max_points=3000)
     pts = jnp.asarray(points)
-    got = np.asarray(jax.vmap(learned)(pts[:, 0], pts[:, 1]))
-    want = None if truth is None else np.asarray(jax.vmap(truth)(pts[:, 0], pts[:, 1]))
+    got = np.asarray(coefficients_at(learned, pts))
+    want = None if truth is None else np.asarray(coefficients_at(truth, pts))
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), layout="constrained")
     order = np.argsort(points[:, 1])
     lo, hi = points[:, 1].min(), points[:, 1].max()

@@ -62,6 +62,15 @@ class AbstractFlow(eqx.Module):
         return du
 
 
+@eqx.filter_jit
+def velocity_field(flow: AbstractFlow, points: Array, times: Array) -> Array:
+    """``flow``'s velocity [m/s] at every one of ``points`` (shape ``(P, 2)``, m) at every one of
+    ``times`` (shape ``(T,)``, s): shape ``(T, P, 2)``. One compiled program per flow type and
+    shape (an eager ``vmap`` dispatches and compiles each primitive on its own: ~150 small
+    programs, 1.3 s for a figure's two grids, against ~0.3 s)."""
+    return jax.vmap(lambda t: jax.vmap(flow.velocity, in_axes=(0, None))(points, t))(times)
+
+
 class StillWater(AbstractFlow):
     """No background flow: ψ = 0."""
 
