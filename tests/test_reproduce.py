@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fhnn.errors import ConfigError, FhnnError
-from fhnn.experiments.executors import Task, run_local
+from fhnn.experiments.executors import FAST_COMPILE_FLAGS, Task, _start_worker, run_local
 from fhnn.experiments.grid import HORIZONS, ReproduceConfig, build_grid
 from fhnn.experiments.reproduce import check_output_folder, reproduce
 from fhnn.experiments.tables import DIVERGENCE_RULE, build_tables, layout, to_csv, to_json, to_markdown
@@ -71,6 +71,20 @@ def test_job_ids_change_with_what_determines_the_result_only() -> None:
     assert not {j.id for j in a} & {j.id for j in c}
     # a seed-0 FHNN job is the same job whatever else the grid holds
     assert {j.id for j in d if j.seed == 0 and j.variant == "fhnn"} <= {j.id for j in a}
+    # compiled for compilation speed the results differ in their last bits: other data, other jobs
+    data_fast, fast = build_grid(ReproduceConfig(seeds=1, fast_compile=True))
+    assert not {j.id for j in a} & {j.id for j in fast}
+    assert not {d.id for d in build_grid(ReproduceConfig(seeds=1))[0]} & {d.id for d in data_fast}
+    assert ReproduceConfig.quick().fast_compile and not ReproduceConfig().fast_compile
+
+
+def test_a_worker_adds_its_xla_flags_before_compiling(monkeypatch) -> None:
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_enable_fast_math=false")
+    _start_worker(None, FAST_COMPILE_FLAGS)
+    assert os.environ["XLA_FLAGS"] == f"--xla_cpu_enable_fast_math=false {FAST_COMPILE_FLAGS}"
+    monkeypatch.delenv("XLA_FLAGS")
+    _start_worker(None, "")
+    assert "XLA_FLAGS" not in os.environ
 
 
 def test_job_ids_change_with_the_code_each_job_runs_and_nothing_else(tmp_path: Path, monkeypatch) -> None:
@@ -330,8 +344,10 @@ def _metrics(out: Path) -> dict[str, dict]:
 
 @pytest.mark.filterwarnings("ignore:os.fork")
 def test_ray_cluster_gives_the_numbers_of_the_local_executor(tmp_path: Path) -> None:
+    """Both compile with ``fast_compile``'s XLA flags (local workers set them as they start, Ray
+    starts its workers with them): a worker without them would differ in the last bits."""
     ray = pytest.importorskip("ray")
-    config = ReproduceConfig.from_dict(TWO_JOBS)
+    config = ReproduceConfig.from_dict({**TWO_JOBS, "fast_compile": True})
     local = reproduce(config, tmp_path / "local", workers=2)
     assert local.jobs_run == 2
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)

@@ -1062,7 +1062,11 @@ def reproduce(
     quick: Annotated[
         bool,
         typer.Option(
-            "--quick", help="Small data, few steps, one seed, one main scenario: the whole report in minutes."
+            "--quick",
+            help=(
+                "Small data, few steps, one seed, one main scenario, jobs compiled for compilation "
+                "speed (fast_compile): the whole report in minutes."
+            ),
         ),
     ] = False,
     seeds: Annotated[int | None, typer.Option(help="Seeds per model [default: 3; --quick: 1].")] = None,

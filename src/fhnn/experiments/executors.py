@@ -9,19 +9,23 @@ raises does not stop the others: its error is collected and raised, as one
 
 - :func:`run_local`: ``workers`` spawned processes (JAX is not fork-safe), each reused for many
   jobs, so imports and JAX's in-process caches are paid once per worker; ``workers = 1`` runs the
-  jobs in the calling process.
+  jobs in the calling process (in one worker process when there are ``xla_flags``).
 - :func:`run_ray`: the same job functions as Ray tasks (one CPU each); connects to ``address``
   (``"auto"``: the running cluster; ``"local"``: start one on this machine), or uses the Ray
   session the caller has already initialised.
 
 Workers share JAX's persistent compilation cache (``cache_dir``) where they share a file system,
-so a model compiled once is loaded, not compiled again, by every later job and run.
+so a model compiled once is loaded, not compiled again, by every later job and run. ``xla_flags``
+(e.g. :data:`FAST_COMPILE_FLAGS`) are added to the workers' ``XLA_FLAGS`` before they compile
+anything (a local worker sets them as it starts; Ray starts its workers with them).
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -29,6 +33,26 @@ from typing import Any
 
 from fhnn.errors import ConfigError, FhnnError
 from fhnn.runtime import use_compilation_cache
+
+#: ``XLA_FLAGS`` that trade run speed for compilation speed (LLVM optimisation level 0).
+FAST_COMPILE_FLAGS = "--xla_backend_optimization_level=0"
+
+
+def _start_worker(cache_dir: str | None, xla_flags: str) -> None:
+    """A local worker's setup, before its first job: a watch that ends the worker when its driver
+    is gone (a killed driver would otherwise leave it running, holding the driver's output pipes
+    open), ``xla_flags`` (read by XLA when the process first compiles) and the compilation cache."""
+    driver = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == driver:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="fhnn-driver-watch", daemon=True).start()
+    if xla_flags:
+        os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {xla_flags}".strip()
+    use_compilation_cache(cache_dir)
 
 
 @dataclass(frozen=True)
@@ -64,11 +88,15 @@ def _raise_failures(failures: list[tuple[Task, BaseException]]) -> None:
         )
 
 
-def run_local(tasks: list[Task], on_done: OnDone, *, workers: int, cache_dir: str | None = None) -> None:
-    """Run ``tasks`` on ``workers`` local processes (in this process when ``workers == 1``)."""
+def run_local(
+    tasks: list[Task], on_done: OnDone, *, workers: int, cache_dir: str | None = None, xla_flags: str = ""
+) -> None:
+    """Run ``tasks`` on ``workers`` local processes; in this process when ``workers == 1`` and
+    there are no ``xla_flags`` (XLA reads its flags once, when a process first compiles: with flags
+    even one worker is a process of its own, so a job's bits do not depend on ``workers``)."""
     check_workers(workers)
     failures: list[tuple[Task, BaseException]] = []
-    if workers == 1:
+    if workers == 1 and not xla_flags:
         queue = list(tasks)
         while queue:
             task = queue.pop(0)
@@ -85,8 +113,8 @@ def run_local(tasks: list[Task], on_done: OnDone, *, workers: int, cache_dir: st
     pool = ProcessPoolExecutor(
         max_workers=workers,
         mp_context=multiprocessing.get_context("spawn"),
-        initializer=use_compilation_cache,
-        initargs=(cache_dir,),
+        initializer=_start_worker,
+        initargs=(cache_dir, xla_flags),
     )
     try:
         pending: dict[Future, Task] = {pool.submit(execute, t.function, None, *t.args): t for t in tasks}
@@ -110,8 +138,11 @@ def run_local(tasks: list[Task], on_done: OnDone, *, workers: int, cache_dir: st
     _raise_failures(failures)
 
 
-def run_ray(tasks: list[Task], on_done: OnDone, *, address: str, cache_dir: str | None = None) -> None:
-    """Run ``tasks`` as Ray tasks on the cluster at ``address`` (or the session already open)."""
+def run_ray(
+    tasks: list[Task], on_done: OnDone, *, address: str, cache_dir: str | None = None, xla_flags: str = ""
+) -> None:
+    """Run ``tasks`` as Ray tasks on the cluster at ``address`` (or the session already open);
+    ``xla_flags`` are added to the ``XLA_FLAGS`` of the workers Ray starts for them."""
     try:
         import ray
     except ImportError:
@@ -122,6 +153,9 @@ def run_ray(tasks: list[Task], on_done: OnDone, *, address: str, cache_dir: str 
         except (ConnectionError, ValueError, RuntimeError) as exc:
             raise ConfigError(f"cannot connect to the Ray cluster at {address!r}: {exc}") from None
     remote = ray.remote(num_cpus=1, max_retries=0)(execute)
+    if xla_flags:
+        flags = f"{os.environ.get('XLA_FLAGS', '')} {xla_flags}".strip()
+        remote = remote.options(runtime_env={"env_vars": {"XLA_FLAGS": flags}})
     shared: dict[int, Any] = {}  # large arguments (data sets) are put in the object store once
 
     def put(arg: Any) -> Any:

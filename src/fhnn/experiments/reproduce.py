@@ -24,7 +24,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fhnn.errors import ConfigError, DataFormatError
-from fhnn.experiments.executors import Task, check_workers, default_workers, run_local, run_ray
+from fhnn.experiments.executors import (
+    FAST_COMPILE_FLAGS,
+    Task,
+    check_workers,
+    default_workers,
+    run_local,
+    run_ray,
+)
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
 from fhnn.experiments.report import build_report
 from fhnn.files import check_new_folder, folder_lock, write_atomic, write_folder_atomic
@@ -103,12 +110,13 @@ def _reproduce(
     # reproduction, a killed one or a plain `fhnn train` of the same shapes is loaded, not compiled
     cache_dir = default_cache_dir()
     report = progress or (lambda *a: None)
+    xla_flags = FAST_COMPILE_FLAGS if config.fast_compile else ""
 
     def run(tasks: list[Task], on_done: Callable[[Task, object], None]) -> None:
         if ray_address:
-            run_ray(tasks, on_done, address=ray_address, cache_dir=cache_dir)
+            run_ray(tasks, on_done, address=ray_address, cache_dir=cache_dir, xla_flags=xla_flags)
         else:
-            run_local(tasks, on_done, workers=workers, cache_dir=cache_dir)
+            run_local(tasks, on_done, workers=workers, cache_dir=cache_dir, xla_flags=xla_flags)
 
     # 1–2. data sets, and the training jobs of each as soon as its data set exists
     by_id: dict[str, DataJob] = {d.id: d for d in datasets}
