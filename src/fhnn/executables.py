@@ -21,7 +21,7 @@ called as it is — no file written or read — when no compilation cache folder
 traced program, when a signature cannot be keyed (a non-array argument that cannot be pickled, a
 function with a closure), when its output holds a function made inside it, or when it cannot be
 exported (host callbacks such as Diffrax's error checks: the rollouts).
-A stored file that cannot be read or run is deleted and the program exported again.
+A stored file that cannot be read or compiled is deleted and the program exported again.
 
 (Serialized XLA executables, :mod:`jax.experimental.serialize_executable`, were tried first: they
 load faster, 0.6 s, but crashed the process at random when run — 3 of 8 ``fhnn reproduce --quick``
@@ -275,8 +275,8 @@ class StoredProgram:
         return program
 
     def _load(self, path: Path, arrays: list[Any], seen: list[Any]) -> _Program | None:
-        """The program stored at ``path``, compiled over ``arrays`` and run once on them to check
-        it; ``None`` (and the file deleted) when it is missing, unreadable or does not run."""
+        """The program stored at ``path``, compiled over ``arrays``; ``None`` (and the file
+        deleted) when it is missing, unreadable or does not compile for them."""
         if not path.is_file():
             return None
         try:
@@ -284,7 +284,6 @@ class StoredProgram:
             exported = jax_export.deserialize(bytearray(module))
             out_tree, out_mask, out_others = _OutUnpickler(io.BytesIO(out_part), seen).load()
             program = _Program(_compiled(exported, arrays), out_tree, out_mask, out_others)
-            jax.block_until_ready(program.compiled(*arrays))
         except Exception as err:  # a stale or damaged file only costs a compilation
             logger.warning("discarding stored executable %s: %s", path.name, err)
             path.unlink(missing_ok=True)
