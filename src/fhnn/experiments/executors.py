@@ -38,6 +38,11 @@ from fhnn.runtime import use_compilation_cache
 FAST_COMPILE_FLAGS = "--xla_backend_optimization_level=0"
 
 
+def _xla_flags_with(xla_flags: str) -> str:
+    """This process's ``XLA_FLAGS`` with ``xla_flags`` added."""
+    return f"{os.environ.get('XLA_FLAGS', '')} {xla_flags}".strip()
+
+
 def _start_worker(cache_dir: str | None, xla_flags: str) -> None:
     """A local worker's setup, before its first job: a watch that ends the worker when its driver
     is gone (a killed driver would otherwise leave it running, holding the driver's output pipes
@@ -51,7 +56,7 @@ def _start_worker(cache_dir: str | None, xla_flags: str) -> None:
 
     threading.Thread(target=watch, name="fhnn-driver-watch", daemon=True).start()
     if xla_flags:
-        os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {xla_flags}".strip()
+        os.environ["XLA_FLAGS"] = _xla_flags_with(xla_flags)
     use_compilation_cache(cache_dir)
 
 
@@ -154,8 +159,7 @@ def run_ray(
             raise ConfigError(f"cannot connect to the Ray cluster at {address!r}: {exc}") from None
     remote = ray.remote(num_cpus=1, max_retries=0)(execute)
     if xla_flags:
-        flags = f"{os.environ.get('XLA_FLAGS', '')} {xla_flags}".strip()
-        remote = remote.options(runtime_env={"env_vars": {"XLA_FLAGS": flags}})
+        remote = remote.options(runtime_env={"env_vars": {"XLA_FLAGS": _xla_flags_with(xla_flags)}})
     shared: dict[int, Any] = {}  # large arguments (data sets) are put in the object store once
 
     def put(arg: Any) -> Any:
