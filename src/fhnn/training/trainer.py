@@ -274,12 +274,11 @@ class Trainer:
         window: int = 2,
         on_step: Callable[[str, int], None] | None = None,
     ) -> None:
-        """``on_step(phase, step)`` (optional) is told of progress between records: after the first
-        step of a phase (its program is then compiled) and at most every 0.25 s after that; phase
-        is "warmup", "adam" or "lbfgs", step counts as in the history."""
+        """``on_step(phase, step)`` (optional) is told of progress between records, after every
+        step (a cheap call: a progress bar throttles its own redrawing); phase is "warmup", "adam"
+        or "lbfgs", step counts as in the history."""
         self.config = config
         self._on_step = on_step
-        self._told = -1.0
         #: The start of ``config.max_time``: when this trainer was made, moved later by each
         #: compiled program's first call (:meth:`_uncounted_first`; see :meth:`deadline`).
         self.started = time.monotonic()
@@ -435,7 +434,7 @@ class Trainer:
                 phase, quasi_newton_step, params, opt_state, static, batch, scales, qn_cfg
             )
             done = k + 1
-            self._tell(phase, 0 if phase == "warmup" else cfg.steps + done, first=k == 0)
+            self._tell(phase, 0 if phase == "warmup" else cfg.steps + done)
             late = None if done == iterations else self._over_budget(phase, done, iterations, what)
             if done % every == 0 or done == iterations or late is not None:
                 record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
@@ -484,12 +483,8 @@ class Trainer:
             callback(state, record)
         return ended
 
-    def _tell(self, phase: str, step: int, *, first: bool) -> None:
-        if self._on_step is None:
-            return
-        now = time.monotonic()
-        if first or now - self._told >= 0.25:
-            self._told = now
+    def _tell(self, phase: str, step: int) -> None:
+        if self._on_step is not None:
             self._on_step(phase, step)
 
     @staticmethod
@@ -554,7 +549,7 @@ class Trainer:
             )
             skipped = skipped + last["skipped"]
             done = i + 1
-            self._tell("adam", done, first=i == state.step)
+            self._tell("adam", done)
             late = None if done == cfg.steps else self._over_budget("adam", done, cfg.steps, "Adam")
             if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
                 record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items() if k != "skipped"}}
