@@ -1079,8 +1079,8 @@ def reproduce(
     steps: Annotated[
         int | None,
         typer.Option(
-            help="Adam steps per model [default: 1500, with the default plan's warm-up and polish and "
-            "60 s per job (train.max_time); --quick: 80, Adam only]."
+            help="Adam steps per model [default: 1500, with the default plan's warm-up, a polish of up "
+            "to 1200 L-BFGS iterations and 60 s per job (train.max_time); --quick: 80, Adam only]."
         ),
     ] = None,
     workers: Annotated[
