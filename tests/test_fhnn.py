@@ -1,6 +1,7 @@
 """FHNN model, training, checkpoints, rollout and metrics."""
 
 import itertools
+import json
 import re
 
 import equinox as eqx
@@ -20,7 +21,7 @@ from fhnn.physics.flows import AbstractFlow
 from fhnn.training.run import Run, RunConfig, check_trainable
 from fhnn.training.trainer import TrainConfig
 
-from .conftest import small_dataset
+from .conftest import arrays, small_dataset
 
 
 class StreamOnly(AbstractFlow):
@@ -384,3 +385,80 @@ def test_training_phase_settings_are_checked():
     with pytest.raises(ConfigError, match="lbfgs_memory"):
         TrainConfig(lbfgs_memory=0)
     assert TrainConfig(steps=0).steps == 0
+
+
+class _WaveCoefficients(eqx.Module):
+    """Stands in for the stream MLP: the harmonic coefficients of the deep-water wave at ``ξ``
+    (``ψ/psi_scale = c e^{ky} [cos(kx) cos(ωt) + sin(kx) sin(ωt)]``, ω = π·mode/time_scale)."""
+
+    wave: eqx.Module
+    length_scale: float
+    psi_scale: float
+    mode: int
+    modes: int
+
+    def __call__(self, xi):
+        x, y = xi * self.length_scale
+        k, w = self.wave.wavenumber, self.wave.omega
+        c = self.wave.amplitude * w / k * jnp.exp(k * y) / self.psi_scale
+        out = jnp.zeros(2 * self.modes + 1)
+        return out.at[self.mode].set(c * jnp.cos(k * x)).at[self.modes + self.mode].set(c * jnp.sin(k * x))
+
+
+def test_harmonic_time_basis_carries_a_travelling_wave_exactly():
+    """ψ = MLP(ξ)·φ(t): with the wave's spatial coefficients in channel j (cos) and K + j (sin),
+    where the 4 s period is 2·20/10 s of a 20 s window (j = 10), the stream net's velocity and
+    material derivative (the Morison term) are the wave's, at times inside and past the window."""
+    from fhnn.physics.flows import DeepWaterWave
+
+    ds = small_dataset("wave", n_traj=6, duration=3.0)
+    args = {**build_arguments(ds), "time_scale": 20.0}
+    model = MODELS["fhnn"].make(FHNNConfig(width=8), args, 0)
+    flow = model.flow
+    assert flow.time_modes == 16 and flow.mlp.out_size == 33 and flow.mlp.in_size == 2
+    wave = DeepWaterWave(amplitude=0.2, period=4.0)
+    coeffs = _WaveCoefficients(wave, float(flow.length_scale), float(flow.psi_scale), 10, 16)
+    flow = eqx.tree_at(lambda f: f.mlp, flow, coeffs)
+    points = np.random.default_rng(0).uniform([-5, -3, 0], [5, -1, 45], (20, 3))
+    for x, y, t in points:
+        xy, tt = jnp.asarray([x, y]), jnp.asarray(t)
+        np.testing.assert_allclose(flow.velocity(xy, tt), wave.velocity(xy, tt), rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(
+            flow.material_derivative(xy, tt), wave.material_derivative(xy, tt), rtol=1e-10, atol=1e-13
+        )
+
+
+def test_harmonic_time_basis_resolves_periods_off_its_grid():
+    """The basis's claim (``harmonic_basis``): tones whose periods are not 2T/j still lie in its span
+    on the window, to 1e-9 with 16 modes down to a period of 3.3 s over 20 s — and not with 8."""
+    from fhnn.models.fhnn import harmonic_basis
+
+    tau = jnp.linspace(0.0, 1.0, 2001)
+    for modes, limit in ((16, 1e-9), (8, None)):
+        basis = np.asarray(jax.vmap(lambda s, m=modes: harmonic_basis(s, m))(tau))
+        assert basis.shape == (2001, 2 * modes + 1)
+        for period in (3.3, 4.4, 7.7, 50.0):
+            tone = np.cos(2 * np.pi * 20.0 * np.asarray(tau) / period + 0.3)
+            coef, *_ = np.linalg.lstsq(basis, tone, rcond=None)
+            worst = np.abs(basis @ coef - tone).max()
+            if limit is not None:
+                assert worst < limit, (modes, period, worst)
+            elif period == 3.3:
+                assert worst > 0.1  # 8 modes reach down to periods of ~5 s only
+
+
+def test_a_run_stored_before_the_harmonic_time_basis_loads_with_the_papers_form(tmp_path):
+    """A run whose stored configuration lacks ``time_modes`` (written before the field existed)
+    is rebuilt with ψ(x, y, t) = MLP(ξ, τ), the form its weights are, not the current default."""
+    ds = small_dataset("time_varying_vortex", n_traj=6, duration=2.0)
+    config = RunConfig().with_settings({"model.width": 4, "model.time_modes": 0, "train.steps": 3})
+    run = Run.create(tmp_path / "run", ds, config)
+    run.train(ds)
+    info_path = tmp_path / "run" / "run.json"
+    info = json.loads(info_path.read_text())
+    del info["model_config"]["time_modes"]
+    info_path.write_text(json.dumps(info))
+    loaded = Run.load(tmp_path / "run")
+    assert loaded.model_config.time_modes == 0 and loaded.best_model.flow.mlp.in_size == 3
+    for a, b in zip(arrays(loaded.best_model), arrays(run.state.best_model), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))

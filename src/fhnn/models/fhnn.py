@@ -34,6 +34,17 @@ then learns only what a linear flow cannot explain. (Measured on
 ``solid_body_vortex`` without the warm-up: the MLP took 93 % of the rotation, and the learned flow
 was 80–92 % wrong at r = 10–20 m, where the 60 s test rollouts go.)
 
+Time-dependent flows (beyond the paper): the paper's ψ_θ(x, y, t) is one MLP with time as a third
+input, which has to build every oscillation of the flow out of tanh units in t — a deep-water wave
+of period 4 s is five periods over a 20 s record. By default the MLP sees position only and its
+``2K + 1`` outputs multiply a harmonic basis in time (``time_modes = K``, :func:`harmonic_basis`):
+``ψ = Σ_c MLP_c(ξ) φ_c(t)``, a Fourier series in time whose coefficients are smooth fields in
+space. Measured on ``wave`` (data seed 0, validation split, the default plan of the time: Adam
+12,000 + L-BFGS 700 on the derivative and one-step losses): validation loss
+1.3e-4 → 2.8e-7, RMSE(pos) of 5 s rollouts 1.2e-2 → 1.9e-4 m, masses 74 % → 0.1 % off, flow
+585 % → 0.46 % off (relative L2); on ``time_varying_vortex`` validation loss 3.9e-6 → 3.3e-6 and
+flow 7.7 % → 1.6 % off. ``time_modes=0`` gives the paper's form back.
+
 Radius extrapolation (beyond the paper): the coefficient net sees ``r`` clipped to the range of
 radii in the training data (``r_extrapolation="hold"``, default), so outside that range the
 coefficients are held at their values at its edge instead of following the MLP's arbitrary
@@ -56,7 +67,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fhnn.config import Config, check_positive, frozen_config
+from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
 from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError
 from fhnn.models.base import AbstractVectorField
@@ -98,6 +109,10 @@ class FHNNConfig(Config):
         far_field: "linear" (MLP plus a learned linear flow, penalty on the MLP part) or "none".
         r_extrapolation: "hold" (the coefficient net sees r clipped to the training data's range)
             or "net" (the MLP's own extrapolation, as in the paper).
+        time_modes: harmonics K of a time-dependent flow's basis in time (see :class:`StreamNet`):
+            ψ = MLP(ξ)·(1, cos(πjt/T), sin(πjt/T))_{j=1…K}, T the training data's time window;
+            16 resolve periods down to about T/6. 0: the paper's MLP(ξ, t/T). Unused for a
+            steady flow.
     """
 
     config_name = "fhnn"
@@ -114,9 +129,11 @@ class FHNNConfig(Config):
     linear_drag: Literal["constant", "net"] = "constant"
     far_field: Literal["linear", "none"] = "linear"
     r_extrapolation: Literal["hold", "net"] = "hold"
+    time_modes: int = 16
 
     def validate(self) -> None:
         check_positive(self, "width", "depth")
+        check_nonnegative(self, "time_modes")
         if any(c <= 0 for c in self.caps):
             raise ConfigError(f"fhnn: caps must be > 0, got {self.caps}")
         for value, cap in zip(self.init_coefficients, self.caps, strict=True):
@@ -141,7 +158,10 @@ def _activation(name: str):
 
 
 class StreamNet(AbstractFlow):
-    """``ψ_θ = psi_scale · [MLP(ξ[, t/time_scale]) + ½ ξᵀQξ + bᵀξ]`` [m²/s], ``ξ = x / length_scale``.
+    """``ψ_θ = psi_scale · [MLP(ξ) + ½ ξᵀQξ + bᵀξ]`` [m²/s], ``ξ = x / length_scale``; for a
+    time-dependent flow the MLP's ``2K + 1`` outputs are the coefficients of a harmonic basis in
+    time, ``MLP(ξ)·φ(t)`` with ``φ = (1, cos(πjτ), sin(πjτ))``, ``j = 1 … K``,
+    ``τ = t / time_scale``, ``K = time_modes`` (``time_modes = 0``: the paper's ``MLP(ξ, τ)``).
 
     ``quadratic = (Q_xx, Q_xy, Q_yy)`` and ``linear = b`` are the far-field linear flow (None: the
     paper's plain MLP). The scales are data-derived constants held as 0-d arrays behind
@@ -156,6 +176,7 @@ class StreamNet(AbstractFlow):
     uses_time: bool = eqx.field(static=True)
     quadratic: Array | None = None
     linear: Array | None = None
+    time_modes: int = eqx.field(static=True, default=0)
 
     @property
     def time_dependent(self) -> bool:
@@ -166,10 +187,12 @@ class StreamNet(AbstractFlow):
         if self.mlp is None:
             return jnp.zeros((), jnp.result_type(float))
         inp = jnp.asarray(xy) / _const(self.length_scale)
-        if self.uses_time:
-            tau = jnp.asarray(t, inp.dtype) / _const(self.time_scale)
-            inp = jnp.concatenate([inp, jnp.reshape(tau, (1,))])
-        return _const(self.psi_scale) * self.mlp(inp)[0]
+        if not self.uses_time:
+            return _const(self.psi_scale) * self.mlp(inp)[0]
+        tau = jnp.asarray(t, inp.dtype) / _const(self.time_scale)
+        if not self.time_modes:  # the paper's form: time as a third input
+            return _const(self.psi_scale) * self.mlp(jnp.concatenate([inp, jnp.reshape(tau, (1,))]))[0]
+        return _const(self.psi_scale) * jnp.dot(self.mlp(inp), harmonic_basis(tau, self.time_modes))
 
     def stream(self, xy: Array, t: Array) -> Array:
         psi = self.net_stream(xy, t)
@@ -203,6 +226,15 @@ class CoefficientNet(AbstractCoefficients):
         if self.c_l_raw is not None:  # constant linear drag: one learned raw value
             z = z.at[3].set(self.c_l_raw)
         return cap(z, jnp.asarray(self.caps), self.cap_map) * _const(self.mask)
+
+
+def harmonic_basis(tau: Array, modes: int) -> Array:
+    """``(1, cos(πjτ) for j = 1 … modes, sin(πjτ) for j = 1 … modes)`` at the scaled time ``τ``,
+    shape ``(2·modes + 1,)``: on ``τ ∈ [0, 1]`` (the training window) it resolves every period
+    down to about ``1.3 · 2/modes`` windows, off its grid too (a tone of period 3.3 s over a 20 s
+    window to 1e-10 with 16 modes: half-periods and their sines together are overcomplete)."""
+    phase = jnp.pi * tau * jnp.arange(1, modes + 1, dtype=jnp.result_type(tau))
+    return jnp.concatenate([jnp.ones((1,), phase.dtype), jnp.cos(phase), jnp.sin(phase)])
 
 
 def _array(value: Any) -> Array:
@@ -334,7 +366,9 @@ def build_fhnn(
     if config.ablation == "no_flow":
         flow = StillWater()
     else:
-        mlp = eqx.nn.MLP(2 + int(time_dependent), 1, config.width, depth, activation=act, key=k_flow)
+        modes = config.time_modes if time_dependent else 0
+        n_in = 3 if time_dependent and not modes else 2  # ξ, and τ in the paper's form
+        mlp = eqx.nn.MLP(n_in, 1 + 2 * modes, config.width, depth, activation=act, key=k_flow)
         if config.far_field == "linear":  # the MLP starts at zero flow: see the module docstring
             mlp = eqx.tree_at(lambda m: m.layers[-1].weight, mlp, jnp.zeros_like(mlp.layers[-1].weight))
         flow = StreamNet(
@@ -345,6 +379,7 @@ def build_fhnn(
             uses_time=time_dependent,
             quadratic=jnp.zeros(3) if config.far_field == "linear" else None,
             linear=jnp.zeros(2) if config.far_field == "linear" else None,
+            time_modes=modes,
         )
     mask = [1.0, 1.0, 1.0, 1.0]
     if config.ablation == "no_added_mass":

@@ -411,10 +411,9 @@ class Run:
         if expect_model is not None and kind != expect_model:
             raise DataFormatError(f"{folder}: checkpoint is a {kind!r} model, not {expect_model!r}")
         try:
-            config = RunConfig.from_dict(
-                {"kind": kind, "model": info["model_config"], "train": info["train_config"]}
-            )
-        except (ConfigError, KeyError) as exc:
+            model_config = {**MODELS[kind].stored_defaults, **info["model_config"]}
+            config = RunConfig.from_dict({"kind": kind, "model": model_config, "train": info["train_config"]})
+        except (ConfigError, KeyError, TypeError) as exc:
             raise DataFormatError(f"{info_path}: unreadable configuration ({exc})") from None
         meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed") if k in info}
         run = cls(folder, config, info["build_arguments"], meta)
