@@ -4,7 +4,7 @@ Plans are chosen on validation numbers only and confirmed on a data seed not use
 (the test split is never read here). For each scenario and data seed it prints the wall time, the
 best validation loss, why Adam stopped (if it did), RMSE(pos) of val rollouts at 1 s and 5 s (the
 val trajectories' length allowing), and the coefficient and flow recovery (which compares with the
-simulator's truth, not with held-out data).
+simulator's truth, not with held-out data), and the validation loss at every record.
 
 Usage::
 
@@ -79,6 +79,9 @@ def main() -> None:
             [round(b["sigma_lo"], 4), round(b["quadratic_share"], 3), round(b["c_q"], 4)]
             for b in coef["_by_sigma"]
         ]
+    # the validation loss at every record: where each phase got to, and whether the polish overfits
+    history = state.history
+    out["trace"] = [(h["step"], h.get("phase", "adam"), float(f"{h['val_total']:.3g}")) for h in history]
     print(json.dumps(out))
 
 

@@ -14,7 +14,7 @@ from fhnn.cli.app import main
 from fhnn.config import read_settings_file
 from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.errors import ConfigError
-from fhnn.training.plans import AUTO_WARMUP_ACCEPT, DEFAULT_PLAN, PLANS, default_settings
+from fhnn.training.plans import AUTO_WARMUP_ACCEPT, DEFAULT_PLAN, PLANS, data_settings, default_settings
 from fhnn.training.run import RunConfig
 
 from .conftest import small_dataset
@@ -124,6 +124,14 @@ def test_a_new_run_without_a_plan_starts_from_the_default_plan(
     assert info["step"] == 6 and [r["step"] for r in info["history"] if "phase" not in r] == [2, 4]
     ds = read_dataset(data_file)
     assert default_settings(ds) == PLANS[DEFAULT_PLAN].settings("fhnn")
+    # measured derivatives: the plan's derivative loss alone, no flow penalty
+    assert info["train_config"]["w_step"] == 0.0 and info["train_config"]["lambda_flow"] == 0.0
+    assert data_settings(ds) == {}
+    # velocities measured, derivatives estimated: the one-step loss instead of the derivative loss
+    ds.extra["measured"] = ["positions", "velocities"]
+    assert data_settings(ds) == {"train.w_deriv": 0.0, "train.w_step": 1.0}
+    config = RunConfig().with_settings({**default_settings(ds), **data_settings(ds)})
+    assert (config.train.w_deriv, config.train.w_step, config.train.steps) == (0.0, 1.0, 20000)
     ds.extra["measured"] = ["positions"]  # velocities estimated (an imported table)
     assert default_settings(ds) == {}
 
