@@ -44,6 +44,7 @@ import fhnn
 from fhnn.executables import StoredProgram
 from fhnn.models.registry import MODELS
 from fhnn.runtime import use_compilation_cache
+from fhnn.training.plans import DEFAULT_PLAN, PLANS
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import ADAM_FIELDS, TrainConfig, Trainer, adam_step, data_loss, loss_terms
 
@@ -82,6 +83,14 @@ def phases(ds) -> None:
     print(
         f"  Adam step without it (2nd half)     {step[False] * 1e3:7.2f} ms  "
         f"(ratio {step[False] / step[True]:.2f})"
+    )
+    plan = PLANS[DEFAULT_PLAN].train.only(ADAM_FIELDS)  # derivative loss alone, no penalty
+    t_plan = seconds_per_call(
+        lambda: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, plan, False), 100
+    )
+    print(
+        f"  Adam step of the default plan        {t_plan * 1e3:7.2f} ms  "
+        f"(ratio {t_plan / step[True]:.2f}: derivative loss alone, no penalty)"
     )
     batch = {k: v[:256] for k, v in tr._train.items()} | {"key": jax.random.PRNGKey(0)}
     for which in (("deriv",), ("step",), ("deriv", "step"), ("flow",)):

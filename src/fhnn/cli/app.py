@@ -28,6 +28,7 @@ from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
 from fhnn.evaluation.predict import SAMPLES
+from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_SECONDS
 from fhnn.files import check_new_folder, check_output_path
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
@@ -1079,8 +1080,9 @@ def reproduce(
     steps: Annotated[
         int | None,
         typer.Option(
-            help="Adam steps per model [default: 1500, with the default plan's warm-up, a polish of up "
-            "to 1200 L-BFGS iterations and 60 s per job (train.max_time); --quick: 80, Adam only]."
+            help=f"Adam steps per model [default: {JOB_ADAM_STEPS}, with the default plan's warm-up, "
+            f"loss and polish of up to {PLANS[DEFAULT_PLAN].train.lbfgs_steps} L-BFGS iterations and "
+            f"{JOB_SECONDS:g} s per job (train.max_time); --quick: 80, Adam only]."
         ),
     ] = None,
     workers: Annotated[
