@@ -13,7 +13,9 @@
    (:mod:`fhnn.executables`), against the plain jitted step, traced and looked up in JAX's
    persistent cache.
 3. Seeds trained as one program: ``N`` models stacked and one ``vmap``-ed Adam step, against ``N``
-   sequential steps (throughput ratio).
+   sequential steps (throughput ratio), for the step with every loss term and the flow penalty
+   and for the step ``fhnn train`` runs (the default plan's loss and width); and one model at
+   ``N`` times the batch, which shows how far the step is compute-bound.
 4. With ``--targets``: time to the accuracy targets (``benchmarks/fhnn_targets.py``: the default
    plan, as ``fhnn train`` runs it) against this project's earlier times (296 s
    ``solid_body_vortex``, 495 s ``steady_vortex``) and the authors' JAX code (1,978 s for its
@@ -166,13 +168,25 @@ def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:
 
 
 def seeds_as_one(ds, n: int) -> None:
+    """``n`` seeds' Adam steps as one ``vmap``-ed program against ``n`` sequential steps, for the
+    step with every loss term and the penalty (width 64, the training defaults) and for the step
+    ``fhnn train`` runs (the default plan: derivative loss alone, no penalty, its width)."""
     print(f"3. {n} seeds as one program (vmap over stacked models) against {n} sequential steps")
-    cfg = TrainConfig()
+    plan = PLANS[DEFAULT_PLAN]
+    _seeds_as_one(ds, n, "all terms and the penalty, width 64", TrainConfig(), {}, True)
+    _seeds_as_one(ds, n, "the default plan's step", plan.train, plan.model.get("fhnn", {}), False)
+
+
+def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict, regularize: bool) -> None:
+    """One row of :func:`seeds_as_one`; then the same model at ``n`` times the batch, which bounds
+    what stacking can gain on this CPU."""
+    model_cfg = RunConfig().with_settings({f"model.{k}": v for k, v in model_settings.items()}).model
+    args = MODELS["fhnn"].arguments(ds)
     ac = cfg.only(ADAM_FIELDS)
-    trainers = [Trainer(TrainConfig(seed=s), ds.train, ds.val) for s in range(n)]
-    states = [t.init(fresh(ds, s)) for s, t in enumerate(trainers)]
+    trainers = [Trainer(cfg, ds.train, ds.val) for _ in range(n)]
+    states = [t.init(MODELS["fhnn"].make(model_cfg, args, s)) for s, t in enumerate(trainers)]
     data, scales = trainers[0]._train, trainers[0].scales
-    keys = jnp.stack([t._key for t in trainers])
+    keys = jnp.stack([jax.random.PRNGKey(s + 1) for s in range(n)])
 
     def stack(trees):
         return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs) if eqx.is_array(xs[0]) else xs[0], *trees)
@@ -183,30 +197,30 @@ def seeds_as_one(ds, n: int) -> None:
     @eqx.filter_jit
     def batched(models, opts, i, keys):
         return eqx.filter_vmap(
-            lambda m, o, k: adam_step(m, o, i, data, scales, k, ac, True),
+            lambda m, o, k: adam_step(m, o, i, data, scales, k, ac, regularize),
             in_axes=(eqx.if_array(0), eqx.if_array(0), 0),
         )(models, opts, keys)
 
-    one = seconds_per_call(lambda: batched(models, opts, jnp.asarray(1), keys), 50)
+    def step(model, opt_state, key, config):
+        return adam_step(model, opt_state, jnp.asarray(1), data, scales, key, config, regularize)
+
+    one = seconds_per_call(lambda: batched(models, opts, jnp.asarray(1), keys), 100)
     seq = seconds_per_call(
-        lambda: [
-            adam_step(s.model, s.opt_state, jnp.asarray(1), data, scales, k, ac, True)
-            for s, k in zip(states, keys, strict=True)
-        ],
-        50,
+        lambda: [step(s.model, s.opt_state, k, ac) for s, k in zip(states, keys, strict=True)], 100
     )
     print(
-        f"  {n} sequential steps {seq * 1e3:7.2f} ms; one vmapped step {one * 1e3:7.2f} ms; "
+        f"  {label}: {n} sequential steps {seq * 1e3:7.2f} ms; one vmapped step {one * 1e3:7.2f} ms; "
         f"throughput ratio {seq / one:.2f} (target ≥ 2)"
     )
-    # why: a step's time grows in proportion to the pairs it sees, so stacking seeds only stacks work
+    # why: a step's time grows with the pairs it sees, so stacking seeds stacks work
     m, o = states[0].model, states[0].opt_state
-    wide = TrainConfig(batch_size=n * cfg.batch_size).only(ADAM_FIELDS)
-    single = seconds_per_call(lambda: adam_step(m, o, jnp.asarray(1), data, scales, keys[0], ac, True), 50)
-    bigger = seconds_per_call(lambda: adam_step(m, o, jnp.asarray(1), data, scales, keys[0], wide, True), 50)
+    wide = cfg.replace(batch_size=n * cfg.batch_size).only(ADAM_FIELDS)
+    single = seconds_per_call(lambda: step(m, o, keys[0], ac), 100)
+    bigger = seconds_per_call(lambda: step(m, o, keys[0], wide), 100)
     print(
-        f"  one model, batch {cfg.batch_size} -> {n * cfg.batch_size}: {single * 1e3:.2f} -> "
-        f"{bigger * 1e3:.2f} ms (×{bigger / single:.2f} for ×{n} the pairs): compute-bound on this CPU"
+        f"    one model, batch {cfg.batch_size} -> {n * cfg.batch_size}: {single * 1e3:.2f} -> "
+        f"{bigger * 1e3:.2f} ms (×{bigger / single:.2f} for ×{n} the pairs; in the sequential loop a "
+        f"step took {seq / n * 1e3:.2f} ms, {seq / n / single:.2f}× a lone step)"
     )
 
 

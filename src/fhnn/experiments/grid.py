@@ -102,7 +102,10 @@ JOB_SECONDS = 60.0
 #: never decayed. Chosen on the validation loss, data seed 0, budget 60 s, polish up to 1,200:
 #: 6,000 steps against 4,000 — obstacle 1.82e-5 -> 1.02e-5, wave 4.40e-7 -> 3.44e-7,
 #: time_varying_vortex 1.49e-6 -> 1.44e-6, steady_vortex 2.30e-7 -> 1.94e-7, noisy_flow 3.90e-5 ->
-#: 3.83e-5; at 8,000 and 12,000 the budget cut Adam on wave and time_varying_vortex.
+#: 3.83e-5; at 8,000 and 12,000 the budget cut Adam on wave and time_varying_vortex. With the plan's
+#: polish of up to 5,000 (which the budget now cuts), 3,000 steps against 6,000 were mixed: steady
+#: 1.77e-8 against 2.20e-8, time_varying 7.9e-7 against 4.9e-7, noisy_flow 3.3e-5 against 4.0e-5,
+#: obstacle 3.92e-6 against 3.99e-6 (docs/benchmarks/plan_selection.txt, G).
 JOB_ADAM_STEPS = 6000
 
 
