@@ -6,10 +6,14 @@ best validation loss, why Adam stopped (if it did), RMSE(pos) of val rollouts at
 val trajectories' length allowing), and the coefficient and flow recovery (which compares with the
 simulator's truth, not with held-out data), and the validation loss at every record.
 
+``--true-flow`` is a diagnosis, not a plan: the FHNN's stream net is replaced by the simulator's
+true flow and only the coefficient net trains (same phases), which shows how well the
+coefficients could be recovered if the flow were known exactly.
+
 Usage::
 
     python benchmarks/plan_selection.py --scenario steady_vortex --data-seed 1 \\
-        --set train.warmup_steps=400 --set train.steps=12000 [--plan adam-polish] [--out DIR]
+        --set train.warmup_steps=400 --set train.steps=12000 [--plan adam-polish] [--true-flow] [--out DIR]
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ import json
 import time
 from pathlib import Path
 
+import equinox as eqx
+
 from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.evaluation.evaluate import evaluate
@@ -27,6 +33,7 @@ from fhnn.physics.scenarios import get_scenario
 from fhnn.runtime import default_cache_dir, use_compilation_cache
 from fhnn.training.plans import get_plan
 from fhnn.training.run import Run, RunConfig
+from fhnn.training.trainer import Trainer, TrainState
 
 
 def _value(text: str):
@@ -36,6 +43,15 @@ def _value(text: str):
         return text
 
 
+def _train_under_true_flow(model, ds, config: RunConfig) -> TrainState:
+    """The phases of :meth:`Run.train` (warm-up, Adam, polish) on ``model`` with its flow replaced
+    by the data set's true flow (a flow without parameters: only the coefficients train)."""
+    model = eqx.tree_at(lambda m: m.eom.flow, model, ds.equations().flow)
+    trainer = Trainer(config.train, ds.train, ds.val)
+    state = trainer.run(trainer.warmup(trainer.init(model)))
+    return trainer.polish(state) if config.train.lbfgs_steps else state
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenario", required=True)
@@ -43,6 +59,7 @@ def main() -> None:
     p.add_argument("--plan", default=None, help="a named plan to start from")
     p.add_argument("--set", action="append", default=[], help="NAME=VALUE (dotted, as fhnn train)")
     p.add_argument("--out", type=Path, default=Path("benchmarks/_plan_selection"))
+    p.add_argument("--true-flow", action="store_true", help="train the coefficients under the true flow")
     args = p.parse_args()
     use_compilation_cache(default_cache_dir())
     args.out.mkdir(parents=True, exist_ok=True)
@@ -56,9 +73,11 @@ def main() -> None:
     config = RunConfig().with_settings(settings)
     tag = "_".join(f"{k.split('.')[-1]}{v}" for k, v in sorted(settings.items()) if not isinstance(v, list))
     folder = args.out / f"run_{args.scenario}_s{args.data_seed}_{abs(hash(tag)) % 10**8}"
-    run = Run.create(folder, ds, config, data_path=path)
     t0 = time.perf_counter()
-    state = run.train(ds, save=False)
+    if args.true_flow:
+        state = _train_under_true_flow(Run.create(folder, ds, config, data_path=path).skeleton(), ds, config)
+    else:
+        state = Run.create(folder, ds, config, data_path=path).train(ds, save=False)
     secs = time.perf_counter() - t0
     horizons = [h for h in (1, 5) if h <= ds.val.t[-1] + 1e-9]
     res = evaluate(state.best_model, ds, horizons, split="val")["horizons"]
@@ -66,6 +85,7 @@ def main() -> None:
         "scenario": args.scenario,
         "data_seed": args.data_seed,
         "settings": settings,
+        "true_flow": args.true_flow,
         "seconds": round(secs, 1),
         "best_val": state.best_val,
         "stopped": state.stopped,
