@@ -7,10 +7,12 @@ Folder layout (``fhnn train DATA -o OUT --seeds N``)::
 
 The members are trained one after another in one process: they have the same shapes and
 configuration, so the first member's compiled programs serve every other member (nothing is
-traced or compiled again). Training them as one ``vmap``-ed program was measured on the 2-core
-CPU (``benchmarks/training_speed.py``): 1.16× the throughput of sequential steps — a batch-256
-step already keeps both cores busy — so sequential members cost the same and each stays an
-ordinary run that can be resumed, inspected or evaluated on its own.
+traced or compiled again), and each stays an ordinary run that can be resumed, inspected or
+evaluated on its own. Training them as one ``vmap``-ed program was measured on the 2-core CPU
+(``benchmarks/training_speed.py``, three members): 1.84× the throughput of sequential Adam steps
+for the default plan's step (0.76× for the step with every loss term and the penalty), which
+would shorten only the Adam phase — about half of a default-plan run on ``steady_vortex``, none
+of one on ``solid_body_vortex``, whose plan is quasi-Newton only.
 
 The spread of the members is what ``fhnn inspect`` and ``fhnn predict`` report as an interval:
 the 5th–95th percentile over the members (:data:`INTERVAL`), at each point. It measures how
