@@ -49,15 +49,16 @@ def test_default_grid_covers_every_table_without_repeats() -> None:
 
 def test_every_job_trains_with_the_default_plan_under_one_budget() -> None:
     """The reproduction trains as ``fhnn train`` does (the default plan's phases, loss terms and
-    polish, its FHNN width, also for the ablations) with fewer Adam steps and a wall-clock budget
-    per job."""
-    from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_SECONDS
+    polish, its FHNN width, also for the ablations) with fewer Adam steps, fewer quasi-Newton pairs
+    and a wall-clock budget per job."""
+    from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_LBFGS_PAIRS, JOB_SECONDS
     from fhnn.training.plans import DEFAULT_PLAN, PLANS
 
     config, plan = ReproduceConfig(), PLANS[DEFAULT_PLAN]
     assert config.train.max_time == JOB_SECONDS > 0 and config.train.steps == JOB_ADAM_STEPS
     assert 0 < JOB_ADAM_STEPS < plan.train.steps and config.train.lbfgs_steps == plan.train.lbfgs_steps > 0
-    same = {"steps": plan.train.steps, "max_time": plan.train.max_time}
+    assert 0 < JOB_LBFGS_PAIRS == config.train.lbfgs_pairs < plan.train.lbfgs_pairs
+    same = {"steps": plan.train.steps, "max_time": plan.train.max_time, "lbfgs_pairs": plan.train.lbfgs_pairs}
     assert config.train.replace(**same) == plan.train
     assert config.model.fhnn.width == plan.model["fhnn"]["width"] != type(config.model.fhnn)().width
     fhnn_jobs = [j for j in build_grid(config)[1] if j.model == "fhnn"]

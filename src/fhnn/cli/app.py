@@ -28,7 +28,7 @@ from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
 from fhnn.evaluation.predict import SAMPLES
-from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_SECONDS
+from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_LBFGS_PAIRS, JOB_SECONDS
 from fhnn.files import check_new_folder, check_output_path
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
@@ -1081,8 +1081,9 @@ def reproduce(
         int | None,
         typer.Option(
             help=f"Adam steps per model [default: {JOB_ADAM_STEPS}, with the default plan's warm-up, "
-            f"loss and polish of up to {PLANS[DEFAULT_PLAN].train.lbfgs_steps} L-BFGS iterations and "
-            f"{JOB_SECONDS:g} s per job (train.max_time); --quick: 80, Adam only]."
+            f"loss and polish of up to {PLANS[DEFAULT_PLAN].train.lbfgs_steps} L-BFGS iterations (on "
+            f"{JOB_LBFGS_PAIRS} pairs) and {JOB_SECONDS:g} s per job (train.max_time); --quick: 80, "
+            "Adam only]."
         ),
     ] = None,
     workers: Annotated[
