@@ -1,0 +1,100 @@
+"""Where an L-BFGS polish iteration's time goes: the iteration against its objective.
+
+The default plan's polish (``fhnn.training.trainer.quasi_newton_step``: optax's L-BFGS with a
+zoom line search) is most of a default-plan run. This times one iteration, as the trainer runs
+it, against one evaluation of its objective and gradient on the same pairs, for the default
+plan's FHNN on ``solid_body_vortex`` at a few pair-set sizes and memory sizes. A ratio well above
+1 says the iteration's cost is the optimiser's own work (the two-loop recursion over ``memory``
+pairs, the line search's extra evaluations and, on a GPU, its loop's host round trips), not the
+model's. Each configuration is timed from the same starting model after 20 warm iterations, so
+the line search's number of evaluations can differ between configurations.
+
+Usage::
+
+    python benchmarks/lbfgs_overhead.py [--iterations 200] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import optax
+from _common import dataset
+
+import fhnn
+from fhnn.models.registry import MODELS
+from fhnn.training.plans import DEFAULT_PLAN, PLANS
+from fhnn.training.run import RunConfig
+from fhnn.training.trainer import (
+    QUASI_NEWTON_FIELDS,
+    Trainer,
+    data_loss,
+    loss_terms,
+    quasi_newton_step,
+    strong_types,
+)
+
+#: (pairs, memory) configurations timed; the default plan's is (4,000, 100), the reproduction's
+#: (2,000, 100).
+CONFIGS = ((4000, 100), (2000, 100), (2000, 30), (2000, 10))
+
+
+def time_iteration(trainer: Trainer, model, pairs: int, memory: int, iterations: int) -> tuple[float, float]:
+    """Seconds per L-BFGS iteration and per objective-and-gradient evaluation."""
+    cfg = trainer.config.replace(lbfgs_pairs=pairs, lbfgs_memory=memory)
+    trainer.config = cfg
+    batch = {**trainer.quasi_newton_windows().as_jax(), "key": jax.random.PRNGKey(4)}
+    params, static = eqx.partition(model, eqx.is_array)
+    qn = cfg.only(QUASI_NEWTON_FIELDS)
+    state = strong_types(optax.lbfgs(memory_size=memory).init(params))
+    for _ in range(21):  # the first call compiles
+        params, state, value = quasi_newton_step(params, state, static, batch, trainer.scales, qn)
+    jax.block_until_ready(value)
+    t0 = time.perf_counter()
+    for _ in range(iterations):
+        params, state, value = quasi_newton_step(params, state, static, batch, trainer.scales, qn)
+    jax.block_until_ready(value)
+    per_iteration = (time.perf_counter() - t0) / iterations
+
+    @jax.jit
+    def value_and_grad(p):
+        return jax.value_and_grad(
+            lambda q: data_loss(loss_terms(eqx.combine(q, static), batch, trainer.scales), qn)
+        )(p)
+
+    jax.block_until_ready(value_and_grad(params))
+    t0 = time.perf_counter()
+    for _ in range(50):
+        out = value_and_grad(params)
+    jax.block_until_ready(out)
+    return per_iteration, (time.perf_counter() - t0) / 50
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--iterations", type=int, default=200)
+    p.add_argument("--out", type=Path, default=Path("benchmarks/_lbfgs_overhead"))
+    args = p.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    platform = jax.devices()[0].platform
+    print(f"fhnn {fhnn.__version__}, jax {jax.__version__}, {platform}, {os.cpu_count()} CPUs")
+    ds, _ = dataset("solid_body_vortex", args.out)
+    run = RunConfig().with_settings(PLANS[DEFAULT_PLAN].settings("fhnn"))
+    trainer = Trainer(run.train, ds.train, ds.val)
+    model = MODELS["fhnn"].make(run.model, MODELS["fhnn"].arguments(ds), 0)
+    print("solid_body_vortex, the default plan's FHNN; one L-BFGS iteration against one objective+gradient")
+    for pairs, memory in CONFIGS:
+        it, vg = time_iteration(trainer, model, pairs, memory, args.iterations)
+        print(
+            f"  {pairs:5d} pairs, memory {memory:3d}: iteration {it * 1e3:6.2f} ms, "
+            f"objective+gradient {vg * 1e3:6.2f} ms, ratio {it / vg:5.1f}"
+        )
+
+
+if __name__ == "__main__":
+    main()
