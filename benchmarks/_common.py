@@ -2,17 +2,33 @@
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
+
+import jax
 
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import get_scenario
 
 
-def dataset(name: str, folder: Path) -> tuple[Dataset, Path]:
-    """The default data set of scenario ``name``, simulated once into ``folder`` and reused."""
-    path = folder / f"{name}.h5"
+def dataset(name: str, folder: Path, seed: int | None = None) -> tuple[Dataset, Path]:
+    """The data set of scenario ``name`` (its default data seed, or ``seed``), simulated once into
+    ``folder`` and reused."""
+    path = folder / (f"{name}.h5" if seed is None else f"{name}_seed{seed}.h5")
     if not path.exists():
         sc = get_scenario(name)
-        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc)), path)
+        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc, seed=seed)), path)
     return read_dataset(path), path
+
+
+def seconds_per_call(fn: Callable[[], Any], repeats: int) -> float:
+    """Mean wall time of ``fn()`` over ``repeats`` calls after one warm call."""
+    jax.block_until_ready(fn())
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        out = fn()
+    jax.block_until_ready(out)
+    return (time.perf_counter() - t0) / repeats

@@ -28,12 +28,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+from _common import dataset
 
-from fhnn.data.dataset import read_dataset, write_dataset
-from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.evaluation.recovery import flow_recovery
 from fhnn.models.registry import MODELS
-from fhnn.physics.scenarios import get_scenario
 from fhnn.training.plans import DEFAULT_PLAN, PLANS
 from fhnn.training.run import RunConfig
 
@@ -42,11 +40,13 @@ SCENARIOS = ("steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "
 
 def ceiling(ds, iterations: int, width: int | None = None, points: int = 8000) -> dict:
     """Fit the stream net of a fresh default-plan FHNN (of ``width`` when given) to the true flow
-    at ``points`` training samples; the relative L2 error there and on the recovery grid."""
+    at ``points`` training samples; the width fitted, the relative L2 error there and on the
+    recovery grid."""
     settings = {f"model.{k}": v for k, v in PLANS[DEFAULT_PLAN].model["fhnn"].items()}
     if width is not None:
         settings["model.width"] = width
-    model = MODELS["fhnn"].make(RunConfig().with_settings(settings).model, MODELS["fhnn"].arguments(ds), 0)
+    model_config = RunConfig().with_settings(settings).model
+    model = MODELS["fhnn"].make(model_config, MODELS["fhnn"].arguments(ds), 0)
     true = ds.equations().flow
     split = ds.train
     states = split.states_clean[split.mask]  # (samples, 4)
@@ -76,6 +76,7 @@ def ceiling(ds, iterations: int, width: int | None = None, points: int = 8000) -
         params, state = step(params, state)
     fitted = eqx.combine(params, static)
     return {
+        "width": model_config.width,
         "samples_rel_l2": float(np.sqrt(loss(params))),
         "grid_rel_l2": flow_recovery(fitted, ds)["rel_l2"],
         "seconds": round(time.perf_counter() - t0, 1),
@@ -92,13 +93,8 @@ def main() -> None:
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     for name in args.scenario or SCENARIOS:
-        sc = get_scenario(name)
-        path = args.out / f"{name}_seed{args.data_seed}.h5"
-        if not path.exists():
-            write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc, seed=args.data_seed)), path)
-        result = ceiling(read_dataset(path), args.iterations, args.width)
-        width = args.width or PLANS[DEFAULT_PLAN].model["fhnn"]["width"]
-        head = {"scenario": name, "data_seed": args.data_seed, "iterations": args.iterations, "width": width}
+        result = ceiling(dataset(name, args.out, args.data_seed)[0], args.iterations, args.width)
+        head = {"scenario": name, "data_seed": args.data_seed, "iterations": args.iterations}
         print(json.dumps({**head, **result}))
 
 

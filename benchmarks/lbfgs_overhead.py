@@ -24,7 +24,7 @@ from pathlib import Path
 import equinox as eqx
 import jax
 import optax
-from _common import dataset
+from _common import dataset, seconds_per_call
 
 import fhnn
 from fhnn.models.registry import MODELS
@@ -44,10 +44,10 @@ from fhnn.training.trainer import (
 CONFIGS = ((4000, 100), (2000, 100), (2000, 30), (2000, 10))
 
 
-def time_iteration(trainer: Trainer, model, pairs: int, memory: int, iterations: int) -> tuple[float, float]:
+def time_iteration(ds, run: RunConfig, model, pairs: int, memory: int, iterations: int) -> tuple:
     """Seconds per L-BFGS iteration and per objective-and-gradient evaluation."""
-    cfg = trainer.config.replace(lbfgs_pairs=pairs, lbfgs_memory=memory)
-    trainer.config = cfg
+    cfg = run.train.replace(lbfgs_pairs=pairs, lbfgs_memory=memory)
+    trainer = Trainer(cfg, ds.train, ds.val)
     batch = {**trainer.quasi_newton_windows().as_jax(), "key": jax.random.PRNGKey(4)}
     params, static = eqx.partition(model, eqx.is_array)
     qn = cfg.only(QUASI_NEWTON_FIELDS)
@@ -67,12 +67,7 @@ def time_iteration(trainer: Trainer, model, pairs: int, memory: int, iterations:
             lambda q: data_loss(loss_terms(eqx.combine(q, static), batch, trainer.scales), qn)
         )(p)
 
-    jax.block_until_ready(value_and_grad(params))
-    t0 = time.perf_counter()
-    for _ in range(50):
-        out = value_and_grad(params)
-    jax.block_until_ready(out)
-    return per_iteration, (time.perf_counter() - t0) / 50
+    return per_iteration, seconds_per_call(lambda: value_and_grad(params), 50)
 
 
 def main() -> None:
@@ -85,11 +80,10 @@ def main() -> None:
     print(f"fhnn {fhnn.__version__}, jax {jax.__version__}, {platform}, {os.cpu_count()} CPUs")
     ds, _ = dataset("solid_body_vortex", args.out)
     run = RunConfig().with_settings(PLANS[DEFAULT_PLAN].settings("fhnn"))
-    trainer = Trainer(run.train, ds.train, ds.val)
     model = MODELS["fhnn"].make(run.model, MODELS["fhnn"].arguments(ds), 0)
     print("solid_body_vortex, the default plan's FHNN; one L-BFGS iteration against one objective+gradient")
     for pairs, memory in CONFIGS:
-        it, vg = time_iteration(trainer, model, pairs, memory, args.iterations)
+        it, vg = time_iteration(ds, run, model, pairs, memory, args.iterations)
         print(
             f"  {pairs:5d} pairs, memory {memory:3d}: iteration {it * 1e3:6.2f} ms, "
             f"objective+gradient {vg * 1e3:6.2f} ms, ratio {it / vg:5.1f}"

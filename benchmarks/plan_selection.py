@@ -24,12 +24,10 @@ import time
 from pathlib import Path
 
 import equinox as eqx
+from _common import dataset
 
-from fhnn.data.dataset import read_dataset, write_dataset
-from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
-from fhnn.physics.scenarios import get_scenario
 from fhnn.runtime import default_cache_dir, use_compilation_cache
 from fhnn.training.plans import get_plan
 from fhnn.training.run import Run, RunConfig
@@ -63,11 +61,7 @@ def main() -> None:
     args = p.parse_args()
     use_compilation_cache(default_cache_dir())
     args.out.mkdir(parents=True, exist_ok=True)
-    sc = get_scenario(args.scenario)
-    path = args.out / f"{args.scenario}_seed{args.data_seed}.h5"
-    if not path.exists():
-        write_dataset(simulate_dataset(sc, SimulationConfig.for_scenario(sc, seed=args.data_seed)), path)
-    ds = read_dataset(path)
+    ds, path = dataset(args.scenario, args.out, args.data_seed)
     settings = get_plan(args.plan).settings("fhnn") if args.plan else {}
     settings.update({k: _value(v) for k, v in (s.split("=", 1) for s in args.set)})
     config = RunConfig().with_settings(settings)

@@ -40,7 +40,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _common import dataset
+from _common import dataset, seconds_per_call
 
 import fhnn
 from fhnn.executables import StoredProgram
@@ -53,16 +53,6 @@ from fhnn.training.trainer import ADAM_FIELDS, TrainConfig, Trainer, adam_step, 
 #: Anchors: earlier times to the targets on this 2-core CPU, and the authors' code on its own data.
 BEFORE = {"solid_body_vortex": 296.0, "steady_vortex": 495.0}
 AUTHORS_SECONDS = 1978.0
-
-
-def seconds_per_call(fn, repeats: int) -> float:
-    """Mean wall time of ``fn()`` over ``repeats`` calls after one warm call."""
-    jax.block_until_ready(fn())
-    t0 = time.perf_counter()
-    for _ in range(repeats):
-        out = fn()
-    jax.block_until_ready(out)
-    return (time.perf_counter() - t0) / repeats
 
 
 def fresh(ds, seed: int = 0):
