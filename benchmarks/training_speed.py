@@ -48,7 +48,14 @@ from fhnn.models.registry import MODELS
 from fhnn.runtime import use_compilation_cache
 from fhnn.training.plans import DEFAULT_PLAN, PLANS
 from fhnn.training.run import RunConfig
-from fhnn.training.trainer import ADAM_FIELDS, TrainConfig, Trainer, adam_step, data_loss, loss_terms
+from fhnn.training.trainer import (
+    ADAM_FIELDS,
+    TrainConfig,
+    Trainer,
+    adam_step,
+    loss_terms,
+    quasi_newton_objective,
+)
 
 #: Anchors: earlier times to the targets on this 2-core CPU, and the authors' code on its own data.
 BEFORE = {"solid_body_vortex": 296.0, "steady_vortex": 495.0}
@@ -102,9 +109,7 @@ def phases(ds) -> None:
 
         @jax.jit
         def value_and_grad(p, data, static=static):
-            return jax.value_and_grad(
-                lambda q: data_loss(loss_terms(eqx.combine(q, static), data, tr.scales), cfg)
-            )(p)
+            return jax.value_and_grad(lambda q: quasi_newton_objective(q, static, data, tr.scales, cfg))(p)
 
         t = seconds_per_call(lambda f=value_and_grad, p=params: f(p, big), 10)
         print(f"  quasi-Newton value+gradient, {label:12s} ({n} pairs) {t:.3f} s")
