@@ -239,7 +239,7 @@ CASES = [
     ),
     (
         ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--smoother", "x"],
-        "--smoother must be one of spline, kalman",
+        "--smoother must be one of auto, spline, kalman",
     ),
     (["predict", "{ws}/run", "--duration", "1"], "give --initial x,y,vx,vy or --history TABLE"),
     ([*P, "--history", "{ws}/good.csv"], "give --initial x,y,vx,vy or --history TABLE"),

@@ -16,8 +16,16 @@ import pytest
 import xarray as xr
 
 from fhnn.cli.app import main
+from fhnn.data import derivatives
 from fhnn.data.dataset import Split, read_dataset, write_dataset
-from fhnn.data.derivatives import lagrange_residuals, noise_level, rts_smooth, smooth_derivatives
+from fhnn.data.derivatives import (
+    AUTO_SPLINE_ROWS,
+    choose_smoother,
+    lagrange_residuals,
+    noise_level,
+    rts_smooth,
+    smooth_derivatives,
+)
 from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, write_table
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError
@@ -126,7 +134,7 @@ def test_noise_level_and_velocities_are_estimated_from_positions(fine, imported)
     rms = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
     # 1 mm noise at ~0.05 s: a finite difference would be ~28 mm/s off; the default smoother
     # (the spline, said so in the record) is ~10× better
-    assert data.extra["import"]["velocity"].startswith("spline smoother"), data.extra["import"]
+    assert data.extra["import"]["smoother"] == "spline", data.extra["import"]
     assert rms < 4e-3, rms
 
 
@@ -136,6 +144,31 @@ def test_lagrange_residuals_vanish_for_a_cubic_at_irregular_times(rng) -> None:
     assert np.max(np.abs(lagrange_residuals(t, z))) < 1e-9
     noise = 0.01 * rng.normal(size=(20, t.size))
     assert noise_level([(t, z + n) for n in noise]) == pytest.approx(0.01, rel=0.05)
+
+
+def test_the_default_smoother_is_the_spline_for_small_tables_and_kalman_for_large_ones(
+    fine, tmp_path, monkeypatch
+) -> None:
+    """``--smoother auto`` (the default) by the table's rows: the spline up to
+    :data:`AUTO_SPLINE_ROWS`, the Kalman smoother above (here with the threshold lowered below
+    this table's rows); the import record names the estimator used; an unknown name is refused
+    with the choices."""
+    assert [choose_smoother("auto", n) for n in (1, AUTO_SPLINE_ROWS, AUTO_SPLINE_ROWS + 1)] == [
+        "spline",
+        "spline",
+        "kalman",
+    ]
+    assert choose_smoother("spline", 10**9) == "spline"
+    with pytest.raises(ConfigError, match="--smoother must be one of auto, spline, kalman, got 'x'"):
+        choose_smoother("x", 10)
+    table = write_table(observe(fine, step=0.05, jitter=0.3, noise=NOISE, seed=1), tmp_path / "t.csv")
+    rows = read_table(table).rows
+    monkeypatch.setattr(derivatives, "AUTO_SPLINE_ROWS", rows - 1)
+    with pytest.raises(SystemExit) as info:
+        main(["import", str(table), "-o", str(tmp_path / "k.h5"), "--mass", "10", "--area", "0.1", "-q"])
+    assert info.value.code == 0
+    record = read_dataset(tmp_path / "k.h5").extra["import"]
+    assert record["smoother"] == "kalman" and record["velocity"].startswith("kalman smoother"), record
 
 
 @pytest.mark.parametrize("smoother", ["spline", "kalman"])

@@ -24,6 +24,7 @@ from rich.table import Column, Table
 
 from fhnn.config import coerce, get_setting, read_settings_file
 from fhnn.data.dataset import read_dataset, write_dataset
+from fhnn.data.derivatives import AUTO_SPLINE_ROWS
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
 from fhnn.errors import ConfigError, FhnnError
@@ -230,15 +231,16 @@ def import_table(
         str,
         typer.Option(
             "--smoother",
-            help="Velocity estimator where the table has none: spline (default; trains the better "
-            "model) or kalman (an RTS smoother, many times faster on large tables).",
+            help="Velocity estimator where the table has none: spline (trains the better model), "
+            "kalman (an RTS smoother, ~10x faster on large tables), or auto: the spline up to "
+            f"{AUTO_SPLINE_ROWS:,} rows, kalman above.",
         ),
-    ] = "spline",
+    ] = "auto",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
     """Import measured trajectories from a table into a data set: rows in any order, irregular
     times, unequal lengths; rows with missing values are dropped and counted; velocities the table
-    lacks are estimated from the positions (a smoothing spline at the noise level they show).
+    lacks are estimated from the positions (a smoother held to the noise level they show).
     Trajectories are split into train/val/test by a seeded permutation."""
     from fhnn.data.table import ImportSettings, parse_split, read_table, table_to_dataset
 

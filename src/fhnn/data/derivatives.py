@@ -13,7 +13,7 @@ make a data set of it:
   (:data:`SMOOTHERS`), both held to the noise level by the discrepancy principle (RMS residual
   ≤ σ: as close to the samples as the noise allows and no closer):
 
-  - ``"spline"`` (default): a quintic FITPACK smoothing spline per series
+  - ``"spline"``: a quintic FITPACK smoothing spline per series
     (:class:`scipy.interpolate.UnivariateSpline`, ``Σ res² ≤ n σ²``), ~30 ms per 2,000 samples;
   - ``"kalman"``: a Kalman (Rauch–Tung–Striebel) smoother per trajectory and axis under a
     white-noise-jerk model (state: position, velocity, acceleration; each interval's transition
@@ -36,8 +36,10 @@ validation track, 5 s ahead, is 2.34 / 2.63 mm RMS off the observed positions (1
 included) against 2.60 / 2.86 mm (without forcing 2.03 against 3.91). (The multi-step
 validation loss is lower on the Kalman import, 2.79e-2 against 3.47e-2 on seed 0, but only
 because its windows start from better velocities: scored on the same import's windows the two
-models are within 1.5 %.) So the spline is the default and the Kalman smoother the fast option
-for large tables (2 million rows in 5.8 s against 66 s, ``docs/benchmarks/own_data.json``).
+models are within 1.5 %.) So the default, ``"auto"`` (:func:`choose_smoother`), is the spline
+up to :data:`AUTO_SPLINE_ROWS` rows and the Kalman smoother above, where FITPACK's time grows out
+of proportion: 2 million rows imported in 6.2 s by default (the Kalman smoother) against 59 s
+with the spline (``docs/benchmarks/own_data_import_speed.json``).
 """
 
 from __future__ import annotations
@@ -269,6 +271,27 @@ def spline_derivatives(
 #: The velocity estimators ``fhnn import --smoother`` offers, by name.
 SMOOTHERS = {"spline": spline_derivatives, "kalman": kalman_derivatives}
 
+#: The default choice: :data:`AUTO_SPLINE_ROWS` decides between the estimators.
+AUTO = "auto"
+#: Tables of at most this many rows get the spline under :data:`AUTO`, larger ones the Kalman
+#: smoother. FITPACK's time grows faster than the series' length (per series of a random walk
+#: sampled at 0.05 s ± 30 %: 1.0 / 3.0 / 8.8 / 23 ms for 250 / 500 / 1,000 / 2,000 samples; of a
+#: smooth track with 1 mm noise 0.5 / 2.0 / 4.8 / 8.4 ms), so 200,000 rows (two series each) take
+#: at most ~5 s in it; 2 million rows took 66 s against 5.8 s for the Kalman smoother
+#: (``docs/benchmarks/own_data.json``, before this choice was the default).
+AUTO_SPLINE_ROWS = 200_000
+
+
+def choose_smoother(name: str, rows: int) -> str:
+    """The estimator (a key of :data:`SMOOTHERS`) that ``name`` stands for on a table of ``rows``
+    rows: ``name`` itself, or for :data:`AUTO` the spline up to :data:`AUTO_SPLINE_ROWS` rows and
+    the Kalman smoother above."""
+    if name == AUTO:
+        return "spline" if rows <= AUTO_SPLINE_ROWS else "kalman"
+    if name not in SMOOTHERS:
+        raise ConfigError(f"--smoother must be one of {', '.join([AUTO, *SMOOTHERS])}, got {name!r}")
+    return name
+
 
 def smooth_derivatives(
     series: list[tuple[np.ndarray, np.ndarray]], noise: float, smoother: str = "spline"
@@ -281,7 +304,10 @@ def smooth_derivatives(
 
 
 __all__ = [
+    "AUTO",
+    "AUTO_SPLINE_ROWS",
     "SMOOTHERS",
+    "choose_smoother",
     "jerk_intensity",
     "kalman_derivatives",
     "lagrange_residuals",

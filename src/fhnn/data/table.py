@@ -17,7 +17,8 @@ rows of one trajectory at the same time, a trajectory with fewer than :data:`MIN
 row number counts data rows from 1, the header not included).
 
 Velocities absent from the table, and every acceleration, are estimated
-(:mod:`fhnn.data.derivatives`: a smoothing spline at the noise level the positions show); the data
+(:mod:`fhnn.data.derivatives`: by default a smoothing spline, the Kalman smoother above 200,000
+rows, held to the noise level the positions show); the data
 set's ``measured`` attribute says which fields were measured, and training then leaves out the
 derivative loss (whose targets would be estimates). Trajectories are split into train, val and
 test by a seeded permutation.
@@ -33,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split
-from fhnn.data.derivatives import SMOOTHERS, noise_level, smooth_derivatives
+from fhnn.data.derivatives import AUTO, choose_smoother, noise_level, smooth_derivatives
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import atomic_output, check_input_file
 from fhnn.runtime import __version__
@@ -250,7 +251,9 @@ class ImportSettings:
         split: fractions of the trajectories for train, val and test (summing to 1).
         seed: seed of the split's permutation.
         time_dependent: whether models may let the flow depend on time.
-        smoother: the velocity estimator (:data:`~fhnn.data.derivatives.SMOOTHERS`).
+        smoother: the velocity estimator: a key of :data:`~fhnn.data.derivatives.SMOOTHERS`, or
+            ``"auto"`` (the spline up to :data:`~fhnn.data.derivatives.AUTO_SPLINE_ROWS` rows,
+            the Kalman smoother above; :func:`~fhnn.data.derivatives.choose_smoother`).
     """
 
     mass: float
@@ -260,11 +263,10 @@ class ImportSettings:
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)
     seed: int = 0
     time_dependent: bool = False
-    smoother: str = "spline"
+    smoother: str = AUTO
 
     def __post_init__(self) -> None:
-        if self.smoother not in SMOOTHERS:
-            raise ConfigError(f"--smoother must be one of {', '.join(SMOOTHERS)}, got {self.smoother!r}")
+        choose_smoother(self.smoother, 0)  # an unknown name is refused here
         for name in ("mass", "area", "rho"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -354,13 +356,14 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     t0 = min(float(tr.t[0]) for tr in trajs)
     series = [(tr.t, tr.pos[:, k]) for tr in trajs for k in range(2)]
     pos_noise = noise_level(series)
+    smoother = choose_smoother(settings.smoother, table.rows)
     vel_noise = None
     if has_vel:  # the acceleration of each measured velocity
         velocities = [(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]
         vel_noise = noise_level(velocities)
-        rates = smooth_derivatives(velocities, vel_noise, settings.smoother)
+        rates = smooth_derivatives(velocities, vel_noise, smoother)
     else:  # (velocity, acceleration) of each position
-        rates = smooth_derivatives(series, pos_noise, settings.smoother)
+        rates = smooth_derivatives(series, pos_noise, smoother)
     items = []
     for i, tr in enumerate(trajs):
         vel = np.empty_like(tr.pos)
@@ -403,9 +406,8 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         "time_offset": t0,
         "position_noise": pos_noise,
         "velocity_noise": vel_noise,
-        "velocity": "measured"
-        if has_vel
-        else f"{settings.smoother} smoother at the noise level (RMS residual = σ)",
+        "velocity": "measured" if has_vel else f"{smoother} smoother at the noise level (RMS residual = σ)",
+        "smoother": smoother,
         "step_median": float(np.median(steps)),
         "step_range": [float(steps.min()), float(steps.max())],
         "traj_ids": ids,
