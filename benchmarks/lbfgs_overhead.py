@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 from pathlib import Path
 
 import equinox as eqx
@@ -60,15 +59,17 @@ def tree_step(params, opt_state, static, data, scales, config):
 
 
 def per_iteration(step, x, state, iterations: int) -> float:
-    """Seconds per call of ``step(x, state) -> (x, state, value)`` after 21 calls (the first compiles)."""
-    for _ in range(21):
-        x, state, value = step(x, state)
-    jax.block_until_ready(value)
-    t0 = time.perf_counter()
-    for _ in range(iterations):
-        x, state, value = step(x, state)
-    jax.block_until_ready(value)
-    return (time.perf_counter() - t0) / iterations
+    """Seconds per call of ``step(x, state) -> (x, state, value)``, each call continuing from the
+    last, after 20 calls (the first compiles) and the warm call of :func:`seconds_per_call`."""
+    for _ in range(20):
+        x, state, _ = step(x, state)
+    carry = [x, state]
+
+    def call():
+        carry[0], carry[1], value = step(*carry)
+        return value
+
+    return seconds_per_call(call, iterations)
 
 
 def time_iteration(ds, run: RunConfig, model, pairs: int, memory: int, iterations: int) -> tuple:

@@ -471,7 +471,7 @@ def main() -> None:
     val_forecasts = validation_forecast(run, table, list(record["traj_ids"]["val"]), out / "val_forecast")
     result = {
         "settings": args.set,
-        "smoother": record["velocity"].split()[0],  # the estimator the import used
+        "smoother": record["smoother"],  # the estimator the import used
         "data_seed": args.data_seed,
         "import_seconds": import_seconds,
         "position_noise_seen": record["position_noise"],
