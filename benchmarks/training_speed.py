@@ -20,15 +20,20 @@
    plan, as ``fhnn train`` runs it) against this project's earlier times (296 s
    ``solid_body_vortex``, 495 s ``steady_vortex``) and the authors' JAX code (1,978 s for its
    18,000 steps; RMSE(pos) 1.2e-4 m at 1 s).
+5. With ``--ensemble``: ``fhnn train --seeds N`` end to end on ``steady_vortex`` (the default plan:
+   warm-up discarded, Adam, polish), the members' Adam phases as one program against the members
+   one after another (:func:`fhnn.training.ensemble.train_members`).
 
 Usage::
 
     python benchmarks/training_speed.py [--seeds 3] [--targets] [--out DIR]
+                                        [--ensemble [--ensemble-train JSON]]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -53,8 +58,10 @@ from fhnn.training.trainer import (
     TrainConfig,
     Trainer,
     adam_step,
+    adam_steps,
     loss_terms,
     quasi_newton_objective,
+    stack,
 )
 
 #: Anchors: earlier times to the targets on this 2-core CPU, and the authors' code on its own data.
@@ -182,24 +189,16 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
     states = [t.init(MODELS["fhnn"].make(model_cfg, args, s)) for s, t in enumerate(trainers)]
     data, scales = trainers[0]._train, trainers[0].scales
     keys = jnp.stack([jax.random.PRNGKey(s + 1) for s in range(n)])
-
-    def stack(trees):
-        return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs) if eqx.is_array(xs[0]) else xs[0], *trees)
-
     models = stack([s.model for s in states])
     opts = stack([s.opt_state for s in states])
-
-    @eqx.filter_jit
-    def batched(models, opts, i, keys):
-        return eqx.filter_vmap(
-            lambda m, o, k: adam_step(m, o, i, data, scales, k, ac, regularize),
-            in_axes=(eqx.if_array(0), eqx.if_array(0), 0),
-        )(models, opts, keys)
 
     def step(model, opt_state, key, config):
         return adam_step(model, opt_state, jnp.asarray(1), data, scales, key, config, regularize)
 
-    one = seconds_per_call(lambda: batched(models, opts, jnp.asarray(1), keys), 100)
+    # the program fhnn train --seeds N runs for its members' Adam phases (trainer.run_together)
+    one = seconds_per_call(
+        lambda: adam_steps(models, opts, jnp.asarray(1), data, scales, keys, ac, regularize), 100
+    )
     seq = seconds_per_call(
         lambda: [step(s.model, s.opt_state, k, ac) for s, k in zip(states, keys, strict=True)], 100
     )
@@ -216,6 +215,52 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
         f"    one model, batch {cfg.batch_size} -> {n * cfg.batch_size}: {single * 1e3:.2f} -> "
         f"{bigger * 1e3:.2f} ms (×{bigger / single:.2f} for ×{n} the pairs; in the sequential loop a "
         f"step took {seq / n * 1e3:.2f} ms, {seq / n / single:.2f}× a lone step)"
+    )
+
+
+def ensemble_end_to_end(out: Path, n: int, changes: dict) -> None:
+    """``fhnn train --seeds n`` on ``steady_vortex`` (default data set, the default plan as
+    ``fhnn train`` builds it, with ``changes`` on top), the members' Adam phases as one program
+    (what the command runs) against the members one after another; the members' results agree."""
+    from fhnn.training.ensemble import train_members
+    from fhnn.training.plans import data_settings, default_settings
+    from fhnn.training.run import Run
+
+    ds, _ = dataset("steady_vortex", out)
+    settings = {**default_settings(ds), **data_settings(ds), **{f"train.{k}": v for k, v in changes.items()}}
+    shown = ", ".join(f"{k}={v}" for k, v in changes.items()) or "none"
+    print(f"5. fhnn train --seeds {n} on steady_vortex, default plan (changed: {shown}), end to end")
+    times, runs = {}, {}
+    # together first: the polish and the single-member Adam program the second pass compiles (or
+    # reuses) favour the members one after another, so the ratio errs low
+    for together in (True, False):
+        folder = Path(tempfile.mkdtemp(dir=out))
+        members = [
+            Run.create(folder / f"seed-{s}", ds, RunConfig().with_settings({**settings, "train.seed": s}))
+            for s in range(n)
+        ]
+        members[0].train(ds, until=0, save=False)  # compile the warm-up outside the timing
+        members[0].state = None
+        t0 = time.perf_counter()
+        train_members(members, ds, together=together)
+        times[together], runs[together] = time.perf_counter() - t0, members
+    pairs = [
+        (ra["val_total"], rb["val_total"])
+        for a, b in zip(runs[True], runs[False], strict=True)
+        for ra, rb in zip(a.state.history, b.state.history, strict=False)
+        if "phase" not in ra and "phase" not in rb
+    ]
+    adam = max(abs(x / y - 1) for x, y in pairs)
+    best = max(
+        abs(a.state.best_val / b.state.best_val - 1) for a, b in zip(runs[True], runs[False], strict=True)
+    )
+    print(
+        f"  one after another {times[False]:.1f} s; Adam phases together {times[True]:.1f} s "
+        f"(compilation included); ratio {times[False] / times[True]:.2f}"
+    )
+    print(
+        f"  the {len(pairs)} Adam records' validation losses agree to {adam:.1e} relative; the best after "
+        f"the polish to {best:.1e} (L-BFGS's line searches amplify differences in the last bits)"
     )
 
 
@@ -249,6 +294,17 @@ def main() -> None:
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--targets", action="store_true", help="also train to the accuracy targets (~5 min)")
     p.add_argument("--out", type=Path, default=Path("benchmarks/_training_speed"))
+    p.add_argument(
+        "--ensemble",
+        action="store_true",
+        help="also time fhnn train --seeds N end to end, Adam phases together and apart (~10 min)",
+    )
+    p.add_argument(
+        "--ensemble-train",
+        type=json.loads,
+        default={},
+        help="JSON of train.* changes for --ensemble (e.g. '{\"steps\": 2000}' for a quick check)",
+    )
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     print(
@@ -258,6 +314,8 @@ def main() -> None:
     phases(ds)
     compile_times(ds, path)
     seeds_as_one(ds, args.seeds)
+    if args.ensemble:
+        ensemble_end_to_end(args.out, args.seeds, args.ensemble_train)
     if args.targets:
         to_targets(args.out)
 

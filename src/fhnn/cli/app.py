@@ -356,8 +356,9 @@ def train(
         int | None,
         typer.Option(
             "--seeds",
-            help="Train an ensemble of N runs with seeds --seed … --seed+N−1 into RUN/seed-S "
-            "(fhnn inspect and predict then give 90 % intervals over the members) [default: 1, one run]",
+            help="Train an ensemble of N runs with seeds --seed … --seed+N−1 into RUN/seed-S, their "
+            "Adam phases as one program (fhnn inspect and predict then give 90 % intervals over the "
+            "members) [default: 1, one run]",
         ),
     ] = None,
     config_file: ConfigFileOption = None,
@@ -426,40 +427,28 @@ def train(
     if n_seeds == 1 and is_ensemble(out):
         raise ConfigError(f"{out} holds an ensemble; resume it without --seeds, or train into a new folder")
     if n_seeds is None or n_seeds == 1:
-        _train_run(out, settings, config, dataset, data, extend=extend, quiet=quiet, label="")
+        runs = [_open_run(out, settings, config, dataset, data, extend=extend)]
+        _train_runs(runs, [""], dataset, quiet=quiet)
         return
     base = int(settings.get("train.seed", 0))
     seeds = list(range(base, base + n_seeds))
-    for k, (seed_k, folder) in enumerate(zip(seeds, start_ensemble(out, seeds), strict=True)):
+    runs = []
+    for seed_k, folder in zip(seeds, start_ensemble(out, seeds), strict=True):
         member = {**settings, "train.seed": seed_k}
-        label = f"seed {seed_k} ({k + 1}/{n_seeds}) "
-        _train_run(
-            folder,
-            member,
-            RunConfig().with_settings({**start, **member}),
-            dataset,
-            data,
-            extend=extend,
-            quiet=quiet,
-            label=label,
-        )
+        member_config = RunConfig().with_settings({**start, **member})
+        runs.append(_open_run(folder, member, member_config, dataset, data, extend=extend))
+    labels = [f"seed {s} ({k + 1}/{n_seeds}) " for k, s in enumerate(seeds)]
+    _train_runs(runs, labels, dataset, quiet=quiet)
     if not quiet:
         stdout.print(f"ensemble of {n_seeds} runs (seeds {seeds[0]}–{seeds[-1]}) in {out}", soft_wrap=True)
 
 
-def _train_run(
-    out: Path,
-    settings: dict[str, Any],
-    config: Any,
-    dataset: Any,
-    data: Path,
-    *,
-    extend: bool,
-    quiet: bool,
-    label: str,
-) -> None:
-    """Create or resume the run in ``out`` and train it, with a progress bar (``label`` before
-    its phase: an ensemble's member)."""
+def _open_run(
+    out: Path, settings: dict[str, Any], config: Any, dataset: Any, data: Path, *, extend: bool
+) -> Any:
+    """The run in ``out`` to train: created, or loaded to be resumed (its stored settings must
+    match ``settings``; ``extend`` allows more Adam steps). A finished run is said so and
+    returned as it is."""
     from fhnn.training.run import Run
 
     kind = str(settings.get("kind", "fhnn"))
@@ -486,60 +475,92 @@ def _train_run(
                 "give a larger --steps with --extend.",
                 soft_wrap=True,
             )
-            return
-        err.print(f"resuming {out} from step {run.state.step}", soft_wrap=True)
-    else:
-        if extend:
-            raise ConfigError(f"--extend continues an existing run, and {out} holds none")
-        run = Run.create(out, dataset, config, data_path=data)
-    total = run.train_config.steps + run.train_config.lbfgs_steps
-    with Progress(
-        TextColumn(label + "{task.fields[phase]:9s}"),
+        else:
+            err.print(f"resuming {out} from step {run.state.step}", soft_wrap=True)
+        return run
+    if extend:
+        raise ConfigError(f"--extend continues an existing run, and {out} holds none")
+    return Run.create(out, dataset, config, data_path=data)
+
+
+def _train_runs(runs: list[Any], labels: list[str], dataset: Any, *, quiet: bool) -> None:
+    """Train the unfinished ``runs`` — one run, or an ensemble's members (their Adam phases as
+    one program: :func:`fhnn.training.ensemble.train_members`) — with a progress bar each
+    (``labels[j]`` before its phase), then say how each ended."""
+    from fhnn.training.ensemble import train_members
+
+    todo = [(run, label) for run, label in zip(runs, labels, strict=True) if not run.finished]
+    if not todo:
+        return
+    names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam"}
+    columns = (
+        TextColumn("{task.fields[label]}{task.fields[phase]:9s}"),
         BarColumn(bar_width=20),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
         TextColumn("{task.fields[losses]}", table_column=Column(no_wrap=True, overflow="ellipsis")),
-        console=err,
-        disable=quiet,
-    ) as bar:
-        task = bar.add_task(
-            "train", total=total, completed=run.state.step if run.state else 0, losses="", phase="compiling"
-        )
-        names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam"}
-
-        def progress(state: Any, record: dict[str, float]) -> None:  # every term is in run.json
-            losses = f"train {record['train_loss']:.1e} val {record['val_total']:.1e}"
-            bar.update(task, completed=state.step, losses=losses)
-
-        told = {"phase": "", "at": 0.0}
-
-        def stepped(phase: str, step: int) -> None:  # after every step: the bar moves every 0.1 s
-            _fault_point(phase, step)
-            now = time.monotonic()
-            if phase != told["phase"] or now - told["at"] >= 0.1:
-                told.update(phase=phase, at=now)
-                bar.update(task, completed=step, phase=names.get(phase, phase))
-
+    )
+    with Progress(*columns, console=err, disable=quiet) as bar:
+        callbacks, on_steps = [], []
+        for run, label in todo:
+            total = run.train_config.steps + run.train_config.lbfgs_steps
+            done = run.state.step if run.state else 0
+            task = bar.add_task(
+                "train", total=total, completed=done, losses="", phase="compiling", label=label
+            )
+            callbacks.append(_progress_callback(bar, task))
+            on_steps.append(_step_callback(bar, task, names))
         try:
-            run.train(dataset, callback=progress, on_step=stepped)
+            if len(todo) == 1:
+                todo[0][0].train(dataset, callback=callbacks[0], on_step=on_steps[0])
+            else:
+                train_members([run for run, _ in todo], dataset, callbacks=callbacks, on_steps=on_steps)
         except KeyboardInterrupt:
             bar.stop()
-            kept = (
-                f"{out} keeps the checkpoint of step {run.saved_step}"
+            kept = "; ".join(
+                f"{run.folder} keeps the checkpoint of step {run.saved_step}"
                 if run.saved_step is not None
-                else "nothing was saved yet"
+                else f"nothing was saved in {run.folder} yet"
+                for run, _ in todo
             )
             raise Interrupted(f"interrupted: {kept}; run the same command again to resume") from None
-    if run.state.stopped is not None:  # said even with -q: the run ended before its plan did
-        err.print(_stopped_text(run), highlight=False, soft_wrap=True)
-    if not quiet:
-        decided = [r for r in run.state.history if "warmup" in r]
-        if decided:
-            err.print(_warmup_text(decided[-1], run.train_config), highlight=False, soft_wrap=True)
-        best = run.state.best_val
-        stdout.print(
-            f"trained {run.kind} for {run.state.step} steps; best validation loss {best:.3e}; saved to {out}"
-        )
+    for run, _ in todo:
+        if run.state.stopped is not None:  # said even with -q: the run ended before its plan did
+            err.print(_stopped_text(run), highlight=False, soft_wrap=True)
+        if not quiet:
+            decided = [r for r in run.state.history if "warmup" in r]
+            if decided:
+                err.print(_warmup_text(decided[-1], run.train_config), highlight=False, soft_wrap=True)
+            best = run.state.best_val
+            stdout.print(
+                f"trained {run.kind} for {run.state.step} steps; best validation loss {best:.3e}; saved to "
+                f"{run.folder}",
+                soft_wrap=True,
+            )
+
+
+def _progress_callback(bar: Progress, task: Any) -> Any:
+    """A record callback that moves ``task`` to the record's step and shows its losses."""
+
+    def progress(state: Any, record: dict[str, float]) -> None:  # every term is in run.json
+        losses = f"train {record['train_loss']:.1e} val {record['val_total']:.1e}"
+        bar.update(task, completed=state.step, losses=losses)
+
+    return progress
+
+
+def _step_callback(bar: Progress, task: Any, names: dict[str, str]) -> Any:
+    """A step callback that moves ``task`` (at most every 0.1 s, and at each new phase)."""
+    told = {"phase": "", "at": 0.0}
+
+    def stepped(phase: str, step: int) -> None:
+        _fault_point(phase, step)
+        now = time.monotonic()
+        if phase != told["phase"] or now - told["at"] >= 0.1:
+            told.update(phase=phase, at=now)
+            bar.update(task, completed=step, phase=names.get(phase, phase))
+
+    return stepped
 
 
 def _warmup_text(record: dict[str, Any], train: Any) -> str:

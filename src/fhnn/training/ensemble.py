@@ -5,14 +5,16 @@ Folder layout (``fhnn train DATA -o OUT --seeds N``)::
     OUT/ensemble.json   format "fhnn-ensemble", format_version, the members' seeds
     OUT/seed-S/         a run folder (:class:`fhnn.training.run.Run`) per seed S
 
-The members are trained one after another in one process: they have the same shapes and
-configuration, so the first member's compiled programs serve every other member (nothing is
-traced or compiled again), and each stays an ordinary run that can be resumed, inspected or
-evaluated on its own. Training them as one ``vmap``-ed program was measured on the 2-core CPU
-(``benchmarks/training_speed.py``, three members): 1.84× the throughput of sequential Adam steps
-for the default plan's step (0.76× for the step with every loss term and the penalty), which
-would shorten only the Adam phase — about half of a default-plan run on ``steady_vortex``, none
-of one on ``solid_body_vortex``, whose plan is quasi-Newton only.
+The members are trained in one process by :func:`train_members`: their warm-ups one after
+another, their Adam phases together as one ``vmap``-ed program per step
+(:func:`~fhnn.training.trainer.run_together`), their L-BFGS polishes one after another. They have
+the same shapes and configuration, so the first member's compiled programs serve every other
+member, and each stays an ordinary run that can be resumed, inspected or evaluated on its own.
+On the 2-core CPU three members' Adam steps as one program have 1.80× the throughput of
+sequential ones for the default plan's step and 1.14× for the step with every loss term and the
+penalty (``benchmarks/training_speed.py``); the quasi-Newton phases, whose line searches differ
+from member to member, stay sequential — all of a default-plan run on ``solid_body_vortex``
+(its warm-up is kept, Adam skipped), about three quarters of one on ``steady_vortex``.
 
 The spread of the members is what ``fhnn inspect`` and ``fhnn predict`` report as an interval:
 the 5th–95th percentile over the members (:data:`INTERVAL`), at each point. It measures how
@@ -23,12 +25,19 @@ from __future__ import annotations
 
 import json
 import os
+import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import write_atomic
+from fhnn.models.registry import MODELS
+from fhnn.training.run import Run
+from fhnn.training.trainer import TrainState, can_run_together, run_together
 
 ENSEMBLE_FORMAT = "fhnn-ensemble"
 ENSEMBLE_FORMAT_VERSION = 1
@@ -105,6 +114,60 @@ def member_folders(folder: str | os.PathLike[str]) -> list[Path]:
     return folders
 
 
+Callback = Callable[[TrainState, dict[str, float]], None]
+
+
+def train_members(
+    runs: list[Run],
+    dataset: Dataset,
+    *,
+    callbacks: list[Callback | None] | None = None,
+    on_steps: list[Callable[[str, int], None] | None] | None = None,
+    together: bool = True,
+) -> None:
+    """Train (or resume) the members ``runs`` of an ensemble on ``dataset`` to the end of every
+    phase, checkpointing each as :meth:`Run.train` does (``callbacks[j]`` at member ``j``'s
+    records, ``on_steps[j]`` at its steps). With ``together`` (and members that allow it:
+    :func:`~fhnn.training.trainer.can_run_together`) their Adam phases run as one program;
+    otherwise, or for a fitted kind, each member trains on its own, one after another. Under a
+    time budget (``train.max_time``) each member is charged only its own phases and its share of
+    the joint one."""
+    n = len(runs)
+    callbacks = callbacks or [None] * n
+    on_steps = on_steps or [None] * n
+    if not together or any(MODELS[r.kind].fit is not None for r in runs):
+        for run, callback, on_step in zip(runs, callbacks, on_steps, strict=True):
+            run.train(dataset, callback=callback, on_step=on_step)
+        return
+    trainers = [run.trainer(dataset, on_step) for run, on_step in zip(runs, on_steps, strict=True)]
+
+    def alone(j: int, phase: Callable[[], Any]) -> None:
+        """Run member ``j``'s ``phase``; the others' budget clocks stop meanwhile."""
+        t0 = time.monotonic()
+        phase()
+        for k, trainer in enumerate(trainers):
+            if k != j:
+                trainer.started += time.monotonic() - t0
+
+    for j, run in enumerate(runs):
+        alone(j, lambda run=run, j=j: run.begin(trainers[j], callback=callbacks[j]))
+    states: list[TrainState] = [run.state for run in runs]  # type: ignore[misc]
+    waiting = [j for j, run in enumerate(runs) if states[j].step < run.train_config.steps]
+    if can_run_together([trainers[j] for j in waiting], [states[j] for j in waiting]):
+        run_together(
+            [trainers[j] for j in waiting],
+            [states[j] for j in waiting],
+            callbacks=[runs[j].saving(callbacks[j], True) for j in waiting],
+            checkpoints=[lambda state, run=runs[j]: run.save() for j in waiting],
+            checkpoint_seconds=min(runs[j].checkpoint_seconds for j in waiting),
+        )
+    else:
+        for j in waiting:
+            alone(j, lambda j=j: runs[j].adam(trainers[j], callback=callbacks[j]))
+    for j, run in enumerate(runs):
+        alone(j, lambda run=run, j=j: run.finish(trainers[j], callback=callbacks[j]))
+
+
 def interval(values: np.ndarray, axis: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Median and the :data:`INTERVAL` percentiles of ``values`` over the members' ``axis``:
     ``(median, lo, hi)``, NaN where any member is NaN."""
@@ -126,4 +189,5 @@ __all__ = [
     "member_folders",
     "read_seeds",
     "start_ensemble",
+    "train_members",
 ]

@@ -285,6 +285,15 @@ class Run:
         """The data set the run was trained on (see :meth:`data_file`)."""
         return read_dataset(self.data_file())
 
+    def trainer(self, dataset: Dataset, on_step: Callable[[str, int], None] | None = None) -> Trainer:
+        """The :class:`~fhnn.training.trainer.Trainer` of this run on ``dataset`` (its training
+        windows sized for the model); ``on_step(phase, step)`` is told of every step."""
+        skeleton = self.skeleton()
+        window = skeleton.window
+        if isinstance(skeleton, AbstractVectorField):  # a vector field takes the multi-step loss
+            window = max(window, self.train_config.shoot)
+        return Trainer(self.train_config, dataset.train, dataset.val, window=window, on_step=on_step)
+
     def train(
         self,
         dataset: Dataset,
@@ -297,14 +306,22 @@ class Run:
         """Train (or fit) up to ``until`` Adam steps (default: to the end of every phase),
         checkpointing at every validation when ``save``; ``callback(state, record)`` at each,
         ``on_step(phase, step)`` between them (:class:`~fhnn.training.trainer.Trainer`)."""
-        kind = MODELS[self.kind]
-        skeleton = self.skeleton()
-        window = skeleton.window
-        if isinstance(skeleton, AbstractVectorField):  # a vector field takes the multi-step loss
-            window = max(window, self.train_config.shoot)
-        trainer = Trainer(self.train_config, dataset.train, dataset.val, window=window, on_step=on_step)
-        if kind.fit is not None:  # a one-shot fit (a regression), not gradient descent
+        trainer = self.trainer(dataset, on_step)
+        if MODELS[self.kind].fit is not None:  # a one-shot fit (a regression), not gradient descent
             return self._fit(trainer, dataset, save)
+        self.begin(trainer, callback=callback, save=save)
+        self.adam(trainer, until=until, callback=callback, save=save)
+        return self.finish(trainer, until=until, callback=callback, save=save)
+
+    def begin(
+        self,
+        trainer: Trainer,
+        *,
+        callback: Callable[[TrainState, dict[str, float]], None] | None = None,
+        save: bool = True,
+    ) -> None:
+        """The run's first phase: a new state, and the warm-up (if the plan has one and it has not
+        run yet), checkpointed when ``save``."""
         if self.state is None:
             self.state = trainer.init(self.skeleton())
         if self.state.step == 0 and not any(r.get("phase") == "warmup" for r in self.state.history):
@@ -312,19 +329,48 @@ class Run:
             if save and self.state.history:
                 self.save()
 
+    def adam(
+        self,
+        trainer: Trainer,
+        *,
+        until: int | None = None,
+        callback: Callable[[TrainState, dict[str, float]], None] | None = None,
+        save: bool = True,
+    ) -> None:
+        """The Adam phase up to ``until`` (default: its end), checkpointed at every record and
+        every :attr:`checkpoint_seconds` when ``save``."""
+        self.state = trainer.run(
+            self.state,  # type: ignore[arg-type]
+            until=until,
+            callback=self.saving(callback, save),
+            checkpoint=(lambda state: self.save()) if save else None,
+            checkpoint_seconds=self.checkpoint_seconds,
+        )
+
+    def saving(
+        self, callback: Callable[[TrainState, dict[str, float]], None] | None, save: bool
+    ) -> Callable[[TrainState, dict[str, float]], None]:
+        """The Adam phase's record callback: checkpoint (when ``save``), then ``callback``."""
+
         def on_validation(state: TrainState, record: dict[str, float]) -> None:
             if save:
                 self.save()
             if callback is not None:
                 callback(state, record)
 
-        self.state = trainer.run(
-            self.state,
-            until=until,
-            callback=on_validation,
-            checkpoint=(lambda state: self.save()) if save else None,
-            checkpoint_seconds=self.checkpoint_seconds,
-        )
+        return on_validation
+
+    def finish(
+        self,
+        trainer: Trainer,
+        *,
+        until: int | None = None,
+        callback: Callable[[TrainState, dict[str, float]], None] | None = None,
+        save: bool = True,
+    ) -> TrainState:
+        """After the Adam phase: its checkpoint, and the polish (when the plan has one, Adam is
+        over and ``until`` reaches past it)."""
+        assert self.state is not None
         if save:
             self.save()
         polish = self.train_config.lbfgs_steps > 0 and self.state.step == self.train_config.steps

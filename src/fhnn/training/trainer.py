@@ -562,10 +562,7 @@ class Trainer:
             self._tell("adam", done)
             late = None if done == cfg.steps else self._over_budget("adam", done, cfg.steps, "Adam")
             if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
-                record = {"step": done, **{f"train_{k}": float(v) for k, v in last.items() if k != "skipped"}}
-                record["skipped_steps"] = float(skipped)  # since the previous record (non-finite loss)
-                record["lr"] = float(cfg.schedule()(i))
-                record["lambda_flow"] = float(cfg.flow_weight(jnp.asarray(i)))
+                record = adam_record(cfg, i, last, skipped)
                 skipped = jnp.zeros(())
                 state.opt_state, state.skipped = opt_state, 0.0
                 ended = self._record(state, model, record, callback, stop=cfg, late=late)
@@ -597,8 +594,7 @@ def _validation_terms(model: AbstractModel, data: dict[str, Array], scales: tupl
     return loss_terms(model, data, scales)
 
 
-@eqx.filter_jit
-def adam_step(
+def _adam_step(
     model: AbstractModel,
     opt_state: Any,
     i: Array,
@@ -650,6 +646,150 @@ def adam_step(
     return model, opt_state, {**terms, "skipped": 1.0 - finite.astype(float)}
 
 
+adam_step = eqx.filter_jit(_adam_step)
+
+
+@eqx.filter_jit
+def adam_steps(
+    models: AbstractModel,
+    opt_states: Any,
+    i: Array,
+    data: dict[str, Array],
+    scales: tuple[Array, Array],
+    keys: Array,
+    config: TrainConfig,
+    regularize: bool,
+) -> tuple[AbstractModel, Any, dict[str, Array]]:
+    """:func:`adam_step` of ``K`` members as one program (``jax.vmap``): ``models``, ``opt_states``
+    and ``keys`` ``(K, 2)`` hold the members' arrays stacked on a leading axis (:func:`stack`),
+    and so do the outputs (each loss term ``(K,)``). The members share the data, the step and the
+    configuration; each draws its own minibatch from its own key, as it would alone."""
+
+    def one(model: AbstractModel, opt_state: Any, key: Array) -> tuple[AbstractModel, Any, dict[str, Array]]:
+        return _adam_step(model, opt_state, i, data, scales, key, config, regularize)
+
+    return eqx.filter_vmap(one, in_axes=(eqx.if_array(0), eqx.if_array(0), 0))(models, opt_states, keys)
+
+
+def stack(trees: list[Any]) -> Any:
+    """The array leaves of same-structured ``trees`` stacked on a new leading axis (the other
+    leaves taken from the first)."""
+    return jax.tree.map(lambda *xs: jnp.stack(xs) if eqx.is_array(xs[0]) else xs[0], *trees)
+
+
+def take(tree: Any, index: Any) -> Any:
+    """``tree`` with every array leaf indexed by ``index`` on its leading axis: an int unstacks one
+    member of :func:`stack`, an int array keeps those members."""
+    return jax.tree.map(lambda x: x[index] if eqx.is_array(x) else x, tree)
+
+
+def can_run_together(trainers: list[Trainer], states: list[TrainState]) -> bool:
+    """Whether :func:`run_together` can train these members' Adam phases as one program: at least
+    two, configurations equal but for the seed, every member at the same Adam step before the
+    end, models of one structure, and the same training windows."""
+    if len(trainers) < 2:
+        return False
+    first, state = trainers[0], states[0]
+    configs = {t.config.replace(seed=0) for t in trainers}
+    steps = {s.step for s in states}
+    shapes = {str(jax.tree.structure(eqx.filter(s.model, eqx.is_array))) for s in states}
+    same_data = all(len(t.train_pairs) == len(first.train_pairs) for t in trainers)
+    return (
+        len(configs) == 1
+        and steps == {state.step}
+        and state.step < first.config.steps
+        and len(shapes) == 1
+        and same_data
+    )
+
+
+def run_together(
+    trainers: list[Trainer],
+    states: list[TrainState],
+    *,
+    callbacks: list[Callable[[TrainState, dict[str, float]], None] | None],
+    checkpoints: list[Callable[[TrainState], None] | None],
+    checkpoint_seconds: float = 60.0,
+) -> list[TrainState]:
+    """The Adam phase of several members (runs differing only in their seed, see
+    :func:`can_run_together`) as one ``vmap``-ed program per step (:func:`adam_steps`), each member
+    otherwise as :meth:`Trainer.run` trains it alone: the same minibatches, validations, records,
+    guards and checkpoints (``callbacks[j]`` and ``checkpoints[j]`` for member ``j``). A member whose
+    guard or budget ends its Adam phase leaves the group; the rest go on as a smaller one (one more
+    compilation). Under a time budget each member is charged its share of the group's time (the
+    wall time over the members training), so a member's budget buys the steps it would alone.
+    Against sequential members this trades nothing but the order of floating-point sums: on the
+    2-core CPU three members' steps as one program took 2.45 against 4.42 ms
+    (``benchmarks/training_speed.py``)."""
+    cfg = trainers[0].config
+    adam_cfg = cfg.only(ADAM_FIELDS)
+    data, scales = trainers[0]._train, trainers[0].scales
+    active = list(range(len(trainers)))
+    models = stack([s.model for s in states])
+    opts = stack([s.opt_state for s in states])
+    keys = jnp.stack([t._key for t in trainers])
+    skipped = jnp.asarray([s.skipped for s in states])
+    saved = tick = time.monotonic()
+    for i in range(states[0].step, cfg.steps):
+        regularize = cfg.regularizes(i)
+        name = f"adam-{regularize}-{len(active)}"
+        lead = trainers[active[0]]
+        first, before = name not in lead._programs, lead.started
+        models, opts, last = lead._uncounted_first(
+            name, adam_steps, models, opts, jnp.asarray(i), data, scales, keys, adam_cfg, regularize
+        )
+        now = time.monotonic()
+        for j in active:  # compilation is nobody's time; the rest is shared
+            trainer = trainers[j]
+            if first and trainer is not lead:
+                trainer.started += lead.started - before
+            trainer.started += 0.0 if first else (now - tick) * (1.0 - 1.0 / len(active))
+        tick = now
+        skipped = skipped + last["skipped"]
+        done = i + 1
+        ended = []
+        due = time.monotonic() - saved >= checkpoint_seconds
+        for pos, j in enumerate(active):
+            trainer, state = trainers[j], states[j]
+            trainer._tell("adam", done)
+            late = None if done == cfg.steps else trainer._over_budget("adam", done, cfg.steps, "Adam")
+            if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
+                record = adam_record(cfg, i, take(last, pos), skipped[pos])
+                skipped = skipped.at[pos].set(0.0)
+                state.opt_state, state.skipped = take(opts, pos), 0.0
+                if trainer._record(state, take(models, pos), record, callbacks[j], stop=cfg, late=late):
+                    ended.append(pos)
+                saved = time.monotonic()
+            elif due and checkpoints[j] is not None:
+                state.model, state.opt_state = take(models, pos), take(opts, pos)
+                state.step, state.skipped = done, float(skipped[pos])
+                checkpoints[j](state)  # type: ignore[misc]
+                saved = time.monotonic()
+        if ended:
+            keep = jnp.asarray([p for p in range(len(active)) if p not in ended], dtype=int)
+            active = [j for p, j in enumerate(active) if p not in ended]
+            if not active:
+                return states
+            models, opts, keys, skipped = (take(x, keep) for x in (models, opts, keys, skipped))
+    for pos, j in enumerate(active):
+        state = states[j]
+        state.model, state.opt_state = take(models, pos), take(opts, pos)
+        state.step, state.skipped = max(state.step, cfg.steps), float(skipped[pos])
+    return states
+
+
+def adam_record(config: TrainConfig, i: int, terms: dict[str, Array], skipped: Array) -> dict[str, Any]:
+    """The history record after Adam step ``i`` (0-based): the step count, the step's loss terms
+    (``train_*``), the steps skipped since the previous record (non-finite loss), the learning
+    rate and the penalty's weight at the step."""
+    record: dict[str, Any] = {"step": i + 1}
+    record.update({f"train_{k}": float(v) for k, v in terms.items() if k != "skipped"})
+    record["skipped_steps"] = float(skipped)
+    record["lr"] = float(config.schedule()(i))
+    record["lambda_flow"] = float(config.flow_weight(jnp.asarray(i)))
+    return record
+
+
 def _c_l_labels(params: Any) -> Any:
     """``"c_l"`` for a leaf named ``c_l_raw``, ``"rest"`` for every other leaf of ``params``."""
 
@@ -691,8 +831,8 @@ def quasi_newton_step(
     as ``jax.flatten_util.ravel_pytree(like)`` lays out ``like`` (the parameters' pytree; only its
     structure, shapes and dtypes matter). On one vector each of the optimiser's operations (the
     two-loop recursion over the memory, the line search's updates) is one operation, not one per
-    leaf of the model (30 for the FHNN): an iteration at 4,000 pairs took 7.3 against 11.5 ms on
-    the 2-core CPU, its objective and gradient 5.2 ms (``benchmarks/lbfgs_overhead.py``)."""
+    leaf of the model (30 for the FHNN): an iteration at 4,000 pairs took 7.27 against 10.93 ms on
+    the 2-core CPU, its objective and gradient 4.79 ms (``benchmarks/lbfgs_overhead.py``)."""
     opt = optax.lbfgs(memory_size=config.lbfgs_memory)
     unravel = ravel_pytree(like)[1]
 
