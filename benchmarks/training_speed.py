@@ -221,7 +221,8 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
 def ensemble_end_to_end(out: Path, n: int, changes: dict) -> None:
     """``fhnn train --seeds n`` on ``steady_vortex`` (default data set, the default plan as
     ``fhnn train`` builds it, with ``changes`` on top), the members' Adam phases as one program
-    (what the command runs) against the members one after another; the members' results agree."""
+    (what the command runs) against the members one after another, and where the two runs' Adam
+    records part (the vmapped sums differ in the last bits, which Adam's path amplifies)."""
     from fhnn.training.ensemble import train_members
     from fhnn.training.plans import data_settings, default_settings
     from fhnn.training.run import Run
