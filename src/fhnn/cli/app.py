@@ -1224,11 +1224,12 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
             soft_wrap=True,
             highlight=False,
         )
-        vel_noise = record["velocity_noise"]
+        vel_noise, vel_error = record["velocity_noise"], record.get("velocity_error")
         stdout.print(
             f"measured: {', '.join(summary['measured'])}; "
             f"position noise seen: {_fmt(record['position_noise'])} m"
             + (f", velocity noise seen: {_fmt(vel_noise)} m/s" if vel_noise is not None else "")
+            + (f", estimated velocities' RMS error: {_fmt(vel_error)} m/s" if vel_error is not None else "")
             + f"; velocities: {record['velocity']}",
             soft_wrap=True,
             highlight=False,

@@ -18,7 +18,9 @@ row number counts data rows from 1, the header not included).
 
 Velocities absent from the table, and every acceleration, are estimated
 (:mod:`fhnn.data.derivatives`: by default a smoothing spline, the Kalman smoother above 200,000
-rows, held to the noise level the positions show); the data
+rows, held to the noise level the positions show), and the estimated velocities' RMS error is
+kept beside the noise level in the import record (``velocity_error``, a parametric bootstrap of
+the smoother: :func:`~fhnn.data.derivatives.derivative_error`); the data
 set's ``measured`` attribute says which fields were measured, and training then leaves out the
 derivative loss (whose targets would be estimates). Trajectories are split into train, val and
 test by a seeded permutation.
@@ -34,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split
-from fhnn.data.derivatives import AUTO, choose_smoother, noise_level, smooth_derivatives
+from fhnn.data.derivatives import AUTO, choose_smoother, derivative_error, noise_level, smooth_derivatives
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import atomic_output, check_input_file
 from fhnn.runtime import __version__
@@ -357,13 +359,14 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     series = [(tr.t, tr.pos[:, k]) for tr in trajs for k in range(2)]
     pos_noise = noise_level(series)
     smoother = choose_smoother(settings.smoother, table.rows)
-    vel_noise = None
+    vel_noise = vel_error = None
     if has_vel:  # the acceleration of each measured velocity
         velocities = [(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]
         vel_noise = noise_level(velocities)
         rates = smooth_derivatives(velocities, vel_noise, smoother)
     else:  # (velocity, acceleration) of each position
         rates = smooth_derivatives(series, pos_noise, smoother)
+        vel_error = derivative_error(series, pos_noise, smoother, seed=settings.seed)
     items = []
     for i, tr in enumerate(trajs):
         vel = np.empty_like(tr.pos)
@@ -406,6 +409,7 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         "time_offset": t0,
         "position_noise": pos_noise,
         "velocity_noise": vel_noise,
+        "velocity_error": vel_error,
         "velocity": "measured" if has_vel else f"{smoother} smoother at the noise level (RMS residual = σ)",
         "smoother": smoother,
         "step_median": float(np.median(steps)),
@@ -424,6 +428,27 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         splits=splits,
         extra={"measured": measured, "import": record},
     )
+
+
+def start_errors(dataset: Dataset) -> tuple[float, float]:
+    """``(σ_x [m], σ_v [m/s])``: the noise of ``dataset``'s observed positions and the RMS error of
+    its estimated velocities, which a multi-step training window starts from. From the import
+    record (``position_noise``, ``velocity_error``), estimated from the positions of every split
+    where the record lacks them (a file imported before the record kept the velocity error, or a
+    data set without an import record: the spline smoother assumed)."""
+    record = dataset.extra.get("import") or {}
+    noise, error = record.get("position_noise"), record.get("velocity_error")
+    if noise is not None and error is not None:
+        return float(noise), float(error)
+    series = []
+    for name in SPLITS:
+        split = dataset[name]
+        for i, k in enumerate(split.sample_counts):
+            series += [(split.times[i, :k], split.states[i, :k, a]) for a in range(2)]
+    if noise is None:
+        noise = noise_level(series)
+    smoother = record.get("smoother") or "spline"
+    return float(noise), derivative_error(series, float(noise), smoother, seed=dataset.seed)
 
 
 def observe(
@@ -507,6 +532,7 @@ __all__ = [
     "parse_split",
     "read_forcing",
     "read_table",
+    "start_errors",
     "table_to_dataset",
     "write_table",
 ]

@@ -44,6 +44,33 @@ BLOW_UP = 1e3
 STEPS_PER_SAMPLE = 20
 
 
+def start_error_weighted(resid: Array, t: Array, start_var: Array) -> Array:
+    """A multi-step window's squared position residuals weighed by the inverse of their
+    covariance when the window starts from a position and a velocity with errors.
+
+    Per window and axis, with ``τ_k = t_k − t_0`` and ``J = [1, τ]`` (a start error's drift in free
+    flight), the residuals ``r`` (normalised by the position noise's scale) have covariance
+    ``I + J P Jᵀ``, ``P = diag(start_var)``; their weighted square is
+    ``rᵀ (I + J P Jᵀ)⁻¹ r = rᵀr − uᵀ (P⁻¹ + JᵀJ)⁻¹ u``, ``u = Jᵀr`` (Woodbury: a 2 × 2 solve).
+
+    Args:
+        resid: ``(B, W−1, 2)`` residuals at samples ``1 … W−1``.
+        t: ``(B, W)`` sample times [s].
+        start_var: ``(B, 2)`` variances of the start position (relative to the noise, usually
+            1) and start velocity (relative, [1/s²]) errors; both > 0.
+
+    Returns:
+        ``(B, 2)``: the weighted square per window and axis over ``W − 1`` (so that zero start
+        errors give the mean squared residual).
+    """
+    tau = t[:, 1:] - t[:, :1]
+    jac = jnp.stack([jnp.ones_like(tau), tau], axis=-1)  # (B, W-1, 2)
+    info = jnp.einsum("bki,bkj->bij", jac, jac) + jax.vmap(jnp.diag)(1.0 / start_var)
+    u = jnp.einsum("bki,bka->bia", jac, resid)  # (B, 2 params, 2 axes)
+    explained = jnp.einsum("bia,bia->ba", u, jnp.linalg.solve(info, u))
+    return (jnp.sum(resid**2, axis=1) - explained) / resid.shape[1]
+
+
 @dataclass(frozen=True)
 class Rollout:
     """Predicted states ``(N, T, 4)`` at times ``t`` ``(T,)`` (or each trajectory's own, ``(N,
@@ -158,7 +185,12 @@ class AbstractVectorField(AbstractModel):
             "step": jnp.mean(((pred_path[:, 0] - batch["s"][:, 1]) / step_scale) ** 2),
         }
         if width > 2:
-            terms["shoot"] = jnp.mean(((pred_path[..., :2] - batch["s"][:, 1:, :2]) / step_scale[:2]) ** 2)
+            resid = (pred_path[..., :2] - batch["s"][:, 1:, :2]) / step_scale[:2]
+            if "start_var" in batch:
+                resid_sq = start_error_weighted(resid, batch["t"], batch["start_var"])
+            else:
+                resid_sq = resid**2
+            terms["shoot"] = jnp.mean(resid_sq)
         terms.update(self.regularization(batch["s"][:, 0], batch["t"][:, 0]))
         return terms
 

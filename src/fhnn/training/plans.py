@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fhnn.data.dataset import Dataset
+from fhnn.data.table import start_errors
 from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
 from fhnn.training.trainer import TrainConfig
@@ -187,6 +188,9 @@ def data_settings(dataset: Dataset) -> dict[str, Any]:
                 # quasi-Newton on 8,000 windows of 40 samples costs 40× a one-step iteration
                 "train.warmup_steps": 0,
                 "train.lbfgs_steps": 0,
+                # the windows' residuals weighed by their covariance under the start errors
+                # (three significant digits: estimates, said so in fhnn train's message)
+                "train.shoot_noise": tuple(float(f"{v:.3g}") for v in start_errors(dataset)),
             }
         )
     return out

@@ -100,6 +100,14 @@ class TrainConfig(Config):
             its error (c_q(σ) ≈ 1/σ at small σ mimics a linear drag), so at the plain rate c_l
             barely leaves its initial value in a short run (issue 14's data: 2.0 → 2.2 in 4,000
             steps, truth 3.0, on clean data as on noisy).
+        shoot_noise: ``(σ_x [m], σ_v [m/s])``, the noise of the observed positions and the error
+            of the estimated velocity a multi-step window starts from ((0, 0): not modelled).
+            With ``σ_x > 0`` the multi-step loss weighs each window's position residuals ``r``
+            (per axis) by the inverse of their covariance under those errors,
+            ``rᵀ (I + J P Jᵀ)⁻¹ r`` with ``J = [1, t]`` (a start error's drift, free flight over the
+            window) and ``P = diag(1, σ_v²/σ_x²)``: the model gains nothing by damping a start
+            error it cannot see, which otherwise biases the drag up where relative speeds are
+            small (the error is noise the data's drag signal must outweigh there).
         warmup_accept: what the warm-up's validation loss decides (0: nothing — Adam always
             follows the warm-up). Above 0, a warm-up whose validation loss is at or below it is
             kept and the Adam phase is skipped (the polish starts from the warm-up: the linear
@@ -144,6 +152,7 @@ class TrainConfig(Config):
     shoot_skip: int = 0
     lbfgs_stride: int = 1
     lr_c_l: float = 1.0
+    shoot_noise: tuple[float, float] = (0.0, 0.0)
 
     def validate(self) -> None:
         check_positive(self, "batch_size", "lr", "lr_decay", "val_every", "val_pairs", "lbfgs_pairs")
@@ -156,6 +165,22 @@ class TrainConfig(Config):
             raise ConfigError("training: shoot must be 0 (off) or at least 2 samples, got 1")
         if any(not 0 < b < 1 for b in self.lr_boundaries):
             raise ConfigError(f"training: lr_boundaries must lie in (0, 1), got {self.lr_boundaries}")
+        sx, sv = self.shoot_noise
+        if not (np.isfinite(sx) and np.isfinite(sv) and sx >= 0 and sv >= 0) or (sv > 0 and sx == 0):
+            raise ConfigError(
+                f"training: shoot_noise must be two finite values >= 0 (the position noise > 0 "
+                f"where the velocity error is), got {self.shoot_noise}"
+            )
+
+    def start_variance(self, n: int) -> dict[str, Array]:
+        """The batch field ``"start_var"`` of ``n`` windows, shape ``(n, 2)``: the variances of a
+        window's start position and velocity errors relative to the position noise (``1`` and
+        ``σ_v²/σ_x²`` [1/s²], see ``shoot_noise``); empty where the multi-step loss is off or no
+        noise is given."""
+        sx, sv = self.shoot_noise
+        if self.shoot < 3 or sx == 0:
+            return {}
+        return {"start_var": jnp.broadcast_to(jnp.asarray([1.0, (sv / sx) ** 2]), (n, 2))}
 
     @property
     def first_start(self) -> int:
@@ -306,9 +331,13 @@ class Trainer:
         sc = LossScales.of(self.train_pairs)
         self.scales = (jnp.asarray(sc.deriv), jnp.asarray(sc.step))
         self.optimizer = self.optimizer_for(config)
-        self._train = self.train_pairs.as_jax()
+        self._train = {**self.train_pairs.as_jax(), **config.start_variance(len(self.train_pairs))}
         # a fixed key for the stochastic parts of a model's objective (DHN's denoising) on validation
-        self._val = {**self.val_pairs.as_jax(), "key": jax.random.PRNGKey(config.seed + 3)}
+        self._val = {
+            **self.val_pairs.as_jax(),
+            **config.start_variance(len(self.val_pairs)),
+            "key": jax.random.PRNGKey(config.seed + 3),
+        }
         self._key = jax.random.PRNGKey(config.seed + 1)
 
     def deadline(self, phase: str) -> float:
@@ -430,7 +459,12 @@ class Trainer:
         step 0; "lbfgs": at the steps after Adam's). ``give_up(record)`` true at a record, or the
         phase's time budget spent (:meth:`deadline`), ends the phase there."""
         cfg = self.config
-        batch = {**self.quasi_newton_windows().as_jax(), "key": jax.random.PRNGKey(cfg.seed + 4)}
+        windows = self.quasi_newton_windows()
+        batch = {
+            **windows.as_jax(),
+            **cfg.start_variance(len(windows)),
+            "key": jax.random.PRNGKey(cfg.seed + 4),
+        }
         params, static = eqx.partition(start, eqx.is_array)
         flat, unravel = ravel_pytree(params)
         scales = self.scales
