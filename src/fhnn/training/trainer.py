@@ -570,50 +570,8 @@ class Trainer:
         called at every validation; ``checkpoint(state)`` also whenever ``checkpoint_seconds`` have
         passed since the last call or validation, so that a kill between validations loses little
         (a run resumed from there gives the same result as an uninterrupted one)."""
-        cfg = self.config
-        until = cfg.steps if until is None else min(until, cfg.steps)
-        model, opt_state = state.model, state.opt_state
-        last: dict[str, Array] = {}
-        skipped = jnp.asarray(state.skipped)
-        saved = time.monotonic()
-        adam_cfg = cfg.only(ADAM_FIELDS)
-        for i in range(state.step, until):
-            regularize = cfg.regularizes(i)
-            model, opt_state, last = self._uncounted_first(
-                f"adam-{regularize}",
-                adam_step,
-                model,
-                opt_state,
-                jnp.asarray(i),
-                self._train,
-                self.scales,
-                self._key,
-                adam_cfg,
-                regularize,
-            )
-            skipped = skipped + last["skipped"]
-            done = i + 1
-            self._tell("adam", done)
-            late = None if done == cfg.steps else self._over_budget("adam", done, cfg.steps, "Adam")
-            if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
-                record = adam_record(cfg, i, last, skipped)
-                skipped = jnp.zeros(())
-                state.opt_state, state.skipped = opt_state, 0.0
-                ended = self._record(state, model, record, callback, stop=cfg, late=late)
-                saved = time.monotonic()
-                if ended:  # the Adam phase is over (see _record); not an earlier phase's stop
-                    return state
-            elif checkpoint is not None and time.monotonic() - saved >= checkpoint_seconds:
-                state.model, state.opt_state, state.step, state.skipped = (
-                    model,
-                    opt_state,
-                    done,
-                    float(skipped),
-                )
-                checkpoint(state)
-                saved = time.monotonic()
-        state.model, state.opt_state, state.step = model, opt_state, max(state.step, until)
-        state.skipped = float(skipped)
+        until = self.config.steps if until is None else min(until, self.config.steps)
+        _adam_phase([self], [state], [callback], [checkpoint], until, checkpoint_seconds)
         return state
 
 
@@ -752,28 +710,55 @@ def run_together(
     guard or budget ends its Adam phase leaves the group; the rest go on as a smaller one (one more
     compilation). Under a time budget each member is charged its share of the group's time (the
     wall time over the members training), so a member's budget buys the steps it would alone.
-    Against sequential members this trades nothing but the order of floating-point sums: on the
-    2-core CPU three members' steps as one program took 2.45 against 4.42 ms
-    (``benchmarks/training_speed.py``)."""
+    Against sequential members this trades nothing but the order of floating-point sums; for the
+    throughput it buys see ``docs/benchmarks/training_speed*.txt``."""
+    _adam_phase(trainers, states, callbacks, checkpoints, trainers[0].config.steps, checkpoint_seconds)
+    return states
+
+
+def _adam_phase(
+    trainers: list[Trainer],
+    states: list[TrainState],
+    callbacks: list[Callable[[TrainState, dict[str, float]], None] | None],
+    checkpoints: list[Callable[[TrainState], None] | None],
+    until: int,
+    checkpoint_seconds: float,
+) -> None:
+    """The Adam loop of :meth:`Trainer.run` (one member: :func:`adam_step` on its own arrays) and
+    of :func:`run_together` (several: :func:`adam_steps` on their stacked arrays), from the
+    members' common ``state.step`` up to ``until``; the states are updated in place."""
     cfg = trainers[0].config
     adam_cfg = cfg.only(ADAM_FIELDS)
     data, scales = trainers[0]._train, trainers[0].scales
+    alone = len(trainers) == 1
+    member = (lambda tree, pos: tree) if alone else take
+    if alone:
+        models, opts, keys = states[0].model, states[0].opt_state, trainers[0]._key
+    else:
+        models, opts = stack([s.model for s in states]), stack([s.opt_state for s in states])
+        keys = jnp.stack([t._key for t in trainers])
+    skipped = jnp.asarray([s.skipped for s in states])  # (members,), also for one
     active = list(range(len(trainers)))
-    models = stack([s.model for s in states])
-    opts = stack([s.opt_state for s in states])
-    keys = jnp.stack([t._key for t in trainers])
-    skipped = jnp.asarray([s.skipped for s in states])
     saved = tick = time.monotonic()
-    for i in range(states[0].step, cfg.steps):
+    for i in range(states[0].step, until):
         regularize = cfg.regularizes(i)
-        name = f"adam-{regularize}-{len(active)}"
+        name = f"adam-{regularize}" if alone else f"adam-{regularize}-{len(active)}"
         lead = trainers[active[0]]
         first, before = name not in lead._programs, lead.started
         models, opts, last = lead._uncounted_first(
-            name, adam_steps, models, opts, jnp.asarray(i), data, scales, keys, adam_cfg, regularize
+            name,
+            adam_step if alone else adam_steps,
+            models,
+            opts,
+            jnp.asarray(i),
+            data,
+            scales,
+            keys,
+            adam_cfg,
+            regularize,
         )
         now = time.monotonic()
-        for j in active:  # compilation is nobody's time; the rest is shared
+        for j in active:  # compilation is nobody's time; the rest is shared (alone: all its own)
             trainer = trainers[j]
             if first and trainer is not lead:
                 trainer.started += lead.started - before
@@ -788,28 +773,27 @@ def run_together(
             trainer._tell("adam", done)
             late = None if done == cfg.steps else trainer._over_budget("adam", done, cfg.steps, "Adam")
             if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
-                record = adam_record(cfg, i, take(last, pos), skipped[pos])
+                record = adam_record(cfg, i, member(last, pos), skipped[pos])
                 skipped = skipped.at[pos].set(0.0)
-                state.opt_state, state.skipped = take(opts, pos), 0.0
-                if trainer._record(state, take(models, pos), record, callbacks[j], stop=cfg, late=late):
-                    ended.append(pos)
+                state.opt_state, state.skipped = member(opts, pos), 0.0
+                if trainer._record(state, member(models, pos), record, callbacks[j], stop=cfg, late=late):
+                    ended.append(pos)  # the Adam phase is over (see _record)
                 saved = time.monotonic()
             elif due and checkpoints[j] is not None:
-                state.model, state.opt_state = take(models, pos), take(opts, pos)
+                state.model, state.opt_state = member(models, pos), member(opts, pos)
                 state.step, state.skipped = done, float(skipped[pos])
                 checkpoints[j](state)  # type: ignore[misc]
                 saved = time.monotonic()
         if ended:
-            keep = jnp.asarray([p for p in range(len(active)) if p not in ended], dtype=int)
             active = [j for p, j in enumerate(active) if p not in ended]
             if not active:
-                return states
+                return
+            keep = jnp.asarray([p for p in range(len(skipped)) if p not in ended], dtype=int)
             models, opts, keys, skipped = (take(x, keep) for x in (models, opts, keys, skipped))
     for pos, j in enumerate(active):
         state = states[j]
-        state.model, state.opt_state = take(models, pos), take(opts, pos)
-        state.step, state.skipped = max(state.step, cfg.steps), float(skipped[pos])
-    return states
+        state.model, state.opt_state = member(models, pos), member(opts, pos)
+        state.step, state.skipped = max(state.step, until), float(skipped[pos])
 
 
 def adam_record(config: TrainConfig, i: int, terms: dict[str, Array], skipped: Array) -> dict[str, Any]:
