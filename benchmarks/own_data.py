@@ -476,6 +476,7 @@ def main() -> None:
         "import_seconds": import_seconds,
         "position_noise_seen": record["position_noise"],
         "velocity_rms_error": vel_rms,
+        "velocity_error_estimated": record.get("velocity_error"),  # the import's bootstrap
         "dropped_rows": record["dropped_rows"],
         "train_seconds": train_seconds,
         "coefficients_mean_rel": {k: coef[k]["mean_rel"] for k in ("m_ax", "m_ay", "c_q", "c_l")},
@@ -509,7 +510,8 @@ def main() -> None:
     print(
         f"import {import_seconds:.1f} s, noise seen {record['position_noise'] * 1e3:.3f} mm "
         f"(true {args.noise * 1e3:g} mm), "
-        f"velocity RMS error {vel_rms * 1e3:.2f} mm/s; train "
+        f"velocity RMS error {vel_rms * 1e3:.2f} mm/s (the import's estimate "
+        f"{(record.get('velocity_error') or float('nan')) * 1e3:.2f}); train "
         + (f"{train_seconds:.0f} s" if train_seconds is not None else "reused")
     )
     print(

@@ -30,7 +30,8 @@ samples 2.5, a spline with generalised cross-validation 3.1 (70× slower), the K
 the maximum-likelihood ``q`` 3.7 (it follows the positions, not their derivatives). On issue 14's
 tracks (``benchmarks/own_data.py``: ``steady_vortex``, 1 mm noise, 0.05 s ± 30 %) the Kalman
 smoother's velocities are 1.27 / 1.17 mm/s RMS off against the spline's 1.53 / 1.51 (data seeds
-0 / 1; without forcing 0.94 against 0.88), but the spline's estimates train the better model,
+0 / 1; without forcing 0.94 against 0.88), but the spline's estimates trained the better model
+(measured before training weighed each window's start errors, ``train.shoot_noise``),
 judged on the validation split without the truth: ``fhnn predict`` from the first second of each
 validation track, 5 s ahead, is 2.34 / 2.63 mm RMS off the observed positions (1 mm noise
 included) against 2.60 / 2.86 mm (without forcing 2.03 against 3.91). (The multi-step

@@ -16,9 +16,10 @@ free functions of ``(r, σ)`` only their combination ``½ρA c_q σ + c_l`` coul
 constant (``linear_drag="constant"``) — it is then the ``σ → 0`` limit of the drag and ``c_q(σ)``
 is identified too, in principle: data reach down to some least σ only, so how well the two are
 told apart rests on the slowest relative speeds the data hold (``benchmarks/own_data.py``, positions
-only: c_l 8.2 % off with 1 mm noise and still 4.9 % on exact positions, against 1.2 % and 0.26 %
-for the total drag; ``fhnn inspect`` reports the total as ``drag``); ``linear_drag="net"`` is the
-paper's form, all four outputs of ``g_φ(r, σ)``.
+only with 1 mm noise: c_l 2.2 % off and c_q 5.6 %, against 0.18 % for the total drag, on data
+seed 0; c_l 8.1 % on seed 1, where the c_q net came out nearly flat in σ; ``fhnn inspect``
+reports the total as ``drag``); ``linear_drag="net"`` is the paper's form, all four outputs of
+``g_φ(r, σ)``.
 
 Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
 constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
