@@ -49,8 +49,9 @@ def start_error_weighted(resid: Array, t: Array, start_var: Array) -> Array:
     covariance when the window starts from a position and a velocity with errors.
 
     Per window and axis, with ``τ_k = t_k − t_0`` and ``J = [1, τ]`` (a start error's drift in free
-    flight), the residuals ``r`` (normalised by the position noise's scale) have covariance
-    ``I + J P Jᵀ``, ``P = diag(start_var)``; their weighted square is
+    flight), the residuals ``r`` have covariance ``σ_x² (I + J P Jᵀ)``, ``P = diag(start_var)``, in
+    the units of the position noise σ_x (any common scale of ``r`` only scales the result); their
+    weighted square is
     ``rᵀ (I + J P Jᵀ)⁻¹ r = rᵀr − uᵀ (P⁻¹ + JᵀJ)⁻¹ u``, ``u = Jᵀr`` (Woodbury: a 2 × 2 solve).
 
     Args:
@@ -168,7 +169,8 @@ class AbstractVectorField(AbstractModel):
         against s_1}`` (both normalised by ``scales``) plus :meth:`regularization`; on windows of
         ``W ≥ 3`` samples also ``"shoot"``: RK4 from ``s_0`` through every sample time of the
         window, the MSE of the predicted positions at samples ``1 … W−1`` (normalised by the
-        positions' one-step scale)."""
+        positions' one-step scale) — weighed by the inverse of its covariance under the window's
+        start errors where the batch holds ``"start_var"`` (:func:`start_error_weighted`)."""
         deriv_scale, step_scale = scales
         width = batch["s"].shape[1]
 
