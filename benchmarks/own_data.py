@@ -35,12 +35,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 from fhnn.cli.app import main as fhnn
@@ -306,6 +307,36 @@ def import_speed(folder: Path) -> dict:
     return out
 
 
+def recovery_scores(coef: dict) -> dict:
+    """The parts of :func:`fhnn.evaluation.recovery.coefficient_recovery`'s result the benchmark
+    keeps: mean relative errors of the coefficients, the ratios and the total drag, and per σ band
+    the quadratic share of the drag with the max errors of ``c_q`` and of the total drag."""
+    return {
+        "coefficients_mean_rel": {k: coef[k]["mean_rel"] for k in ("m_ax", "m_ay", "c_q", "c_l")},
+        "ratios_mean_rel": {k: v["mean_rel"] for k, v in coef["_ratios"].items()},
+        "c_q_by_sigma": [
+            {
+                "sigma": [b["sigma_lo"], b["sigma_hi"]],
+                "quadratic_share": b["quadratic_share"],
+                "c_q": b["c_q"],
+                "drag": b["drag"],
+            }
+            for b in coef["_by_sigma"]
+        ],
+        "drag_mean_rel": coef["_drag"]["mean_rel"],
+    }
+
+
+class MedianCoefficients(eqx.Module):
+    """The members' median of each coefficient at ``(r, σ)``: what ``fhnn inspect`` reports for
+    an ensemble, as one coefficient function the recovery scores can take."""
+
+    members: tuple
+
+    def __call__(self, r, sigma):
+        return jnp.median(jnp.stack([m(r, sigma) for m in self.members]), axis=0)
+
+
 def ensemble_scores(
     n: int,
     run: Path,
@@ -319,29 +350,20 @@ def ensemble_scores(
     record: dict,
     previous: dict | None = None,
 ) -> dict:
-    """``fhnn train --seeds n`` on the same data and settings (the finished single run, seed 0,
-    moved in as the first member: training is deterministic, so it is the member the command would
-    train), then each coefficient's and ratio's 90 % interval against the truth
+    """``fhnn train --seeds n`` on the same data and settings (every member on its own bootstrap
+    resample of the training trajectories, the command's default), then each coefficient's and
+    ratio's 90 % interval against the truth
     (:func:`fhnn.experiments.exports.ensemble_intervals`) and ``fhnn predict``'s band on the held-out
     tracks: the share of forecast positions whose truth lies inside the band at each time.
     ``previous``: the result an earlier invocation wrote; where every member had already
     finished, its training time stands (nothing is trained now)."""
-    import shutil
-
     import pyarrow.csv as pacsv
 
     from fhnn.errors import DataFormatError
     from fhnn.experiments.exports import ensemble_intervals
-    from fhnn.training.ensemble import is_ensemble, member_folder, member_folders
+    from fhnn.training.ensemble import is_ensemble, member_folders
 
     ens = out / f"ens{n}_{run.name}"
-    first = member_folder(ens, 0)
-    if not first.exists() and (run / "run.json").exists() and Run.load(run).finished:
-        ens.mkdir(exist_ok=True)
-        shutil.copytree(run, first)
-        info = json.loads((first / "run.json").read_text())
-        info["data"] = os.path.relpath(data.resolve(), first.resolve())
-        (first / "run.json").write_text(json.dumps(info, indent=1))
     try:  # every member trained already (by an earlier invocation)?
         members = member_folders(ens) if is_ensemble(ens) else []
     except DataFormatError:  # a member not trained yet
@@ -359,10 +381,13 @@ def ensemble_scores(
     folder.mkdir(exist_ok=True)
     forecast_errors(ens, table, fine, list(record["traj_ids"]["test"]), folder, (1.0, 5.0), read=False)
     band = pacsv.read_csv(folder / "forecast.csv").to_pydict()
+    median = MedianCoefficients(tuple(m.coefficients for m in models))
     return {
         "members": n,
         "train_seconds": seconds,
         "intervals": rows,
+        # the members' median scored as the single run is (the same points and σ bands)
+        "median_recovery": recovery_scores(coefficient_recovery(median, scored)),
         "forecast_band": band_scores(band, fine),
     }
 
@@ -388,8 +413,8 @@ def main() -> None:
         "--seeds",
         type=int,
         default=1,
-        help="also train an ensemble of this many seeds (fhnn train --seeds; the single run is its "
-        "seed-0 member) and score its 90 %% intervals and forecast band",
+        help="also train an ensemble of this many seeds (fhnn train --seeds: bootstrap members) "
+        "and score its 90 %% intervals and forecast band",
     )
     p.add_argument(
         "--noise",
@@ -479,19 +504,8 @@ def main() -> None:
         "velocity_error_estimated": record.get("velocity_error"),  # the import's bootstrap
         "dropped_rows": record["dropped_rows"],
         "train_seconds": train_seconds,
-        "coefficients_mean_rel": {k: coef[k]["mean_rel"] for k in ("m_ax", "m_ay", "c_q", "c_l")},
-        "ratios_mean_rel": {k: v["mean_rel"] for k, v in coef["_ratios"].items()},
+        **recovery_scores(coef),
         "inspect_says_not_identifiable": says_not_identifiable(run, data),
-        "c_q_by_sigma": [
-            {
-                "sigma": [b["sigma_lo"], b["sigma_hi"]],
-                "quadratic_share": b["quadratic_share"],
-                "c_q": b["c_q"],
-                "drag": b["drag"],
-            }
-            for b in coef["_by_sigma"]
-        ],
-        "drag_mean_rel": coef["_drag"]["mean_rel"],
         "flow_rel_l2": flow["rel_l2"],
         "test_rollouts": errors,
         "test_forecasts": forecasts,
@@ -552,13 +566,22 @@ def main() -> None:
     )
     if "ensemble" in result:
         e = result["ensemble"]
-        print(f"ensemble of {e['members']} (new members trained in {e['train_seconds']:.0f} s):")
+        print(f"ensemble of {e['members']} (trained in {e['train_seconds']:.0f} s):")
         for name, r in e["intervals"].items():
             print(
                 f"  {name:14s} median {r['median']:.4g}  90 % interval {r['lo']:.4g} – {r['hi']:.4g} "
                 f"(width {r['rel_width']:.1%}, target ≤ 10 %)  true {r['true']:.4g}  truth inside at "
                 f"{r['coverage']:.0%} of points (target ≥ 90 %)  median error {r['mean_rel']:.2%}"
             )
+        m = e["median_recovery"]
+        print(
+            "  the members' median against the truth: "
+            + ", ".join(f"{k} {v:.2%}" for k, v in m["coefficients_mean_rel"].items())
+            + ", ratios "
+            + ", ".join(f"{v:.2%}" for v in m["ratios_mean_rel"].values())
+            + f", total drag {m['drag_mean_rel']:.2%}; max error of c_q per σ band (quadratic share): "
+            + ", ".join(f"{b['c_q']:.1%} ({b['quadratic_share']:.0%})" for b in m["c_q_by_sigma"])
+        )
         print("  forecast band (members and start states): " + band_text(e["forecast_band"]))
     if "import_speed" in result:
         print(speed_text(result["import_speed"]))

@@ -80,7 +80,7 @@ def phases(ds) -> None:
     m, o, ac = state.model, state.opt_state, cfg.only(ADAM_FIELDS)
     step = {
         reg: seconds_per_call(
-            lambda r=reg: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, ac, r), 100
+            lambda r=reg: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, None, ac, r), 100
         )
         for reg in (True, False)
     }
@@ -92,7 +92,7 @@ def phases(ds) -> None:
     )
     plan = PLANS[DEFAULT_PLAN].train.only(ADAM_FIELDS)  # derivative loss alone, no penalty
     t_plan = seconds_per_call(
-        lambda: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, plan, False), 100
+        lambda: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, None, plan, False), 100
     )
     print(
         f"  Adam step of the default plan        {t_plan * 1e3:7.2f} ms  "
@@ -193,11 +193,11 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
     opts = stack([s.opt_state for s in states])
 
     def step(model, opt_state, key, config):
-        return adam_step(model, opt_state, jnp.asarray(1), data, scales, key, config, regularize)
+        return adam_step(model, opt_state, jnp.asarray(1), data, scales, key, None, config, regularize)
 
     # the program fhnn train --seeds N runs for its members' Adam phases (trainer.run_together)
     one = seconds_per_call(
-        lambda: adam_steps(models, opts, jnp.asarray(1), data, scales, keys, ac, regularize), 100
+        lambda: adam_steps(models, opts, jnp.asarray(1), data, scales, keys, None, ac, regularize), 100
     )
     seq = seconds_per_call(
         lambda: [step(s.model, s.opt_state, k, ac) for s, k in zip(states, keys, strict=True)], 100

@@ -15,7 +15,7 @@ import xarray as xr
 
 from fhnn.cli.app import main
 from fhnn.data.dataset import read_dataset, write_dataset
-from fhnn.training.ensemble import INTERVAL, member_folder
+from fhnn.training.ensemble import member_folder
 from fhnn.training.run import Run
 
 from .conftest import small_dataset
@@ -45,6 +45,7 @@ def test_members_are_runs_with_consecutive_seeds_and_resume(ensemble, capsys):
     assert json.loads((ens / "ensemble.json").read_text())["seeds"] == [0, 1, 2]
     members = [Run.load(member_folder(ens, s)) for s in range(3)]
     assert [r.train_config.seed for r in members] == [0, 1, 2]
+    assert all(r.train_config.bootstrap for r in members)  # each on its own resample
     assert all(r.finished for r in members)
     weights = [np.asarray(r.state.best_model.flow.mlp.layers[0].weight) for r in members]
     assert not np.array_equal(weights[0], weights[1])  # other seeds, other initialisation
@@ -97,7 +98,7 @@ def test_evaluate_gives_each_member_and_their_mean(ensemble, capsys):
     assert f"{result['mean']['2']['rmse_pos']:.3g}" in out
 
 
-def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):
+def test_inspect_gives_the_members_median_and_intervals(ensemble, capsys):
     ens = ensemble / "ens"
     code, out, _ = run(["inspect", str(ens), "--json"], capsys)
     assert code == 0
@@ -110,7 +111,8 @@ def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):
     table = read_table_columns(ens / "coefficients.csv")
     assert list(table)[:5] == ["r", "sigma", "m_ax", "m_ax_lo", "m_ax_hi"]
     assert set(table) >= {f"{n}{e}" for n in ("m_ay", "c_q", "c_l") for e in ("", "_lo", "_hi")}
-    # the columns are the members' own median and 5th/95th percentiles at each (r, σ)
+    # the columns are the members' own median and the ends of mean ± t(0.95; 2) s √(1 + 1/3) at
+    # each (r, σ) (t(0.95; 2) = 2.9199855804)
     # ... and the total drag coefficient ½ρA c_q σ + c_l [N·s/m] of each member at that σ
     models = [Run.load(member_folder(ens, s)).state.best_model for s in range(3)]
     body = read_dataset(ensemble / "data.h5").constants()
@@ -120,7 +122,8 @@ def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):
         drag = 0.5 * body["rho"] * body["A"] * values[:, 2] * sigma + values[:, 3]
         values = np.column_stack([values, drag])
         for i, name in enumerate(("m_ax", "m_ay", "c_q", "c_l", "drag")):
-            lo, hi = np.percentile(values[:, i], INTERVAL)
+            half = 2.9199855804 * np.std(values[:, i], ddof=1) * np.sqrt(4 / 3)
+            lo, hi = np.mean(values[:, i]) - half, np.mean(values[:, i]) + half
             assert table[name][row] == pytest.approx(np.median(values[:, i]), rel=1e-12)
             assert table[f"{name}_lo"][row] == pytest.approx(lo, rel=1e-12)
             assert table[f"{name}_hi"][row] == pytest.approx(hi, rel=1e-12)
@@ -138,6 +141,7 @@ def test_inspect_gives_the_members_median_and_percentiles(ensemble, capsys):
     assert (
         re.search(r"│ +drag │", out) and "the data fix their sum, the total drag coefficient drag =" in said
     )
+    assert "members trained on bootstrap resamples, so it holds the data's sampling noise" in said
 
 
 def test_predict_from_an_ensemble_gives_the_median_and_a_band(ensemble, capsys):

@@ -158,7 +158,7 @@ def test_a_format_1_run_loads_with_its_constants_and_predicts_as_it_did(tmp_path
     dataset = run.dataset()
     config = run.train_config
     tr = Trainer(config, dataset.train, dataset.val)
-    args = (run.state.model, run.state.opt_state, jnp.asarray(1), tr._train, tr.scales, tr._key)
+    args = (run.state.model, run.state.opt_state, jnp.asarray(1), tr._train, tr.scales, tr._key, None)
     moved, opt_state, terms = adam_step(*args, config.only(ADAM_FIELDS), True)
     assert terms["skipped"] == 0.0 and float(moved.eom.mass) == float(run.state.model.eom.mass)
     run.state.model, run.state.opt_state = moved, opt_state
@@ -180,14 +180,14 @@ def test_the_penalty_free_step_is_the_same_step_once_the_weight_is_zero(data):
     assert not TrainConfig(lambda_flow=0.0).regularizes(0)
     tr = Trainer(config, data.train, data.val)
     state = tr.init(fresh(data, far_field="none"))  # the whole ψ is penalised: non-zero from the start
-    args = (state.model, state.opt_state, jnp.asarray(end + 3), tr._train, tr.scales, tr._key)
+    args = (state.model, state.opt_state, jnp.asarray(end + 3), tr._train, tr.scales, tr._key, None)
     with_penalty = adam_step(*args, config.only(ADAM_FIELDS), True)
     without = adam_step(*args, config.only(ADAM_FIELDS), False)
     assert "flow" in with_penalty[2] and "flow" not in without[2]
     for a, b in zip(arrays(with_penalty[:2]), arrays(without[:2]), strict=True):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-15)
     # before the end of the anneal the penalty is in the loss
-    early = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key)
+    early = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key, None)
     terms = adam_step(*early, config.only(ADAM_FIELDS), True)[2]
     data_only = adam_step(*early, config.only(ADAM_FIELDS), False)[2]["loss"]
     assert float(terms["loss"] - data_only) == pytest.approx(
@@ -244,7 +244,7 @@ def test_lr_c_l_scales_only_the_constant_linear_drags_step(data):
         config = TrainConfig(steps=10, batch_size=16, lr_c_l=k)
         tr = Trainer(config, data.train, data.val)
         state = tr.init(model)
-        args = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key)
+        args = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key, None)
         moved = adam_step(*args, config.only(ADAM_FIELDS), True)[0]
         updates[k] = jax.tree_util.tree_map(
             lambda a, b: np.asarray(a - b), eqx.filter(moved, eqx.is_array), eqx.filter(model, eqx.is_array)

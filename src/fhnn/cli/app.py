@@ -340,7 +340,11 @@ def train(
         ),
     ] = None,
     seed: Annotated[
-        int | None, typer.Option(help="Seed of initialisation and batch order (train.seed) [default: 0]")
+        int | None,
+        typer.Option(
+            help="Seed of initialisation and batch order, and of an ensemble member's bootstrap "
+            "resample (train.seed) [default: 0]"
+        ),
     ] = None,
     max_time: Annotated[
         float | None,
@@ -356,9 +360,10 @@ def train(
         int | None,
         typer.Option(
             "--seeds",
-            help="Train an ensemble of N runs with seeds --seed … --seed+N−1 into RUN/seed-S, their "
-            "Adam phases as one program (fhnn inspect and predict then give 90 % intervals over the "
-            "members) [default: 1, one run]",
+            help="Train an ensemble of N runs with seeds --seed … --seed+N−1 into RUN/seed-S, each on "
+            "its own bootstrap resample of the training trajectories (--set train.bootstrap=false: "
+            "all on the same data), their Adam phases as one program (fhnn inspect and predict then "
+            "give 90 % intervals over the members) [default: 1, one run]",
         ),
     ] = None,
     config_file: ConfigFileOption = None,
@@ -430,6 +435,8 @@ def train(
         runs = [_open_run(out, settings, config, dataset, data, extend=extend)]
         _train_runs(runs, [""], dataset, quiet=quiet)
         return
+    if "train.bootstrap" not in given:  # an ensemble's spread should hold the sampling noise
+        settings["train.bootstrap"] = True
     base = int(settings.get("train.seed", 0))
     seeds = list(range(base, base + n_seeds))
     runs = []
@@ -945,7 +952,7 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
         typer.echo(json.dumps(out, indent=2))
         return
     table = Table(
-        title=f"ensemble of {len(models)} runs: median and 90 % interval over the members, "
+        title=f"ensemble of {len(models)} runs: median and 90 % interval from the members, "
         "typical over the covered (r, σ)",
         title_justify="left",
     )
@@ -969,8 +976,16 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
             f"{mass_width:.1%}, their ratios {ratio_width:.1%}).",
             soft_wrap=True,
         )
+    bootstrap = all(r.train_config.bootstrap for r in runs)
     stdout.print(
-        "the interval is the members' spread (initialisation and batch order), not the data's sampling noise",
+        f"the interval: the members' mean ± t(0.95; {len(models) - 1}) · s · √(1 + 1/{len(models)}) "
+        + (
+            "— members trained on bootstrap resamples, so it holds the data's sampling noise and the "
+            "initialisation's"
+            if bootstrap
+            else "— members trained on the same data: it holds their initialisation and batch order, "
+            "not the data's sampling noise"
+        ),
         soft_wrap=True,
     )
     stdout.print("written: " + ", ".join(str(f) for f in written))

@@ -15,8 +15,8 @@ as ``coefficients.csv`` and the learned flow on a grid as ``flow.nc``.
 
 For an ensemble (``fhnn train --seeds N``) every value is the members' median at that point,
 and ``NAME_lo``, ``NAME_hi`` columns (CSV) or ``u_lo``, ``u_hi``, … variables (NetCDF) hold the
-5th and 95th percentiles over the members (:data:`fhnn.training.ensemble.INTERVAL`); the grid is
-the first member's. Both files are written atomically.
+ends of its 90 % interval (:func:`fhnn.training.ensemble.interval`); the grid is the first
+member's. Both files are written atomically.
 """
 
 from __future__ import annotations
@@ -201,11 +201,11 @@ def write_flow_netcdf(
                 median[..., i],
                 {"units": units, "long_name": f"{long_name}, ensemble median"},
             )
-            for end, values, pct in (("lo", lo, 5), ("hi", hi, 95)):
+            for end, values, which in (("lo", lo, "lower"), ("hi", hi, "upper")):
                 data[f"{name}_{end}"] = (
                     dims,
                     values[..., i],
-                    {"units": units, "long_name": f"{long_name}, {pct}th percentile of the ensemble"},
+                    {"units": units, "long_name": f"{long_name}, {which} end of the 90 % interval"},
                 )
     ds = xr.Dataset(
         data,
