@@ -269,11 +269,9 @@ def spline_derivatives(
     return [(x[:, 1], x[:, 2]) for x in _spline_fit(series, noise)]
 
 
-def _spline_fit(
-    series: list[tuple[np.ndarray, np.ndarray]], noise: float, like: list | None = None
-) -> list[np.ndarray]:
+def _spline_fit(series: list[tuple[np.ndarray, np.ndarray]], noise: float) -> list[np.ndarray]:
     """The smoothing spline's ``(value, first, second)`` at each series' times: ``(n_i, 3)`` each
-    (each series' spline is its own: ``like`` is not used)."""
+    (each series' spline is its own)."""
     from scipy.interpolate import UnivariateSpline  # here: importing it costs 0.7 s
 
     out = []
@@ -287,7 +285,6 @@ def _spline_fit(
 
 #: The velocity estimators ``fhnn import --smoother`` offers, by name.
 SMOOTHERS = {"spline": spline_derivatives, "kalman": kalman_derivatives}
-_FITS = {"spline": _spline_fit, "kalman": _kalman_fit}
 
 #: Series (at most; a seeded choice) that :func:`derivative_error` smooths again.
 ERROR_SERIES = 64
@@ -309,16 +306,22 @@ def derivative_error(
     against the spline's true RMS error of 1.53 mm/s (data seed 0), 1.60–1.77 against 1.51 (seed 1);
     on 40 sinusoids (``tests/test_import.py``) 1.04–1.13 of the spline's error and 0.50–0.74 of
     the Kalman smoother's, whose error also holds a bias."""
-    if smoother not in _FITS:
+    if smoother not in SMOOTHERS:
         raise ConfigError(f"unknown smoother {smoother!r}; available: {', '.join(SMOOTHERS)}")
     if noise <= 0:
         return 0.0
+
+    def fit(part: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        if smoother == "kalman":  # at the intensity chosen on all of series
+            return _kalman_fit(part, noise, like=series)
+        return _spline_fit(part, noise)
+
     rng = np.random.default_rng(seed)
     pick = np.sort(rng.permutation(len(series))[:ERROR_SERIES])
     chosen = [series[i] for i in pick]
-    fitted = _FITS[smoother](chosen, noise, series)
+    fitted = fit(chosen)
     again = [(t, x[:, 0] + rng.normal(0.0, noise, t.size)) for (t, _), x in zip(chosen, fitted, strict=True)]
-    refitted = _FITS[smoother](again, noise, series)
+    refitted = fit(again)
     diff = np.concatenate([b[:, 1] - a[:, 1] for a, b in zip(fitted, refitted, strict=True)])
     return float(np.sqrt(np.mean(diff**2)))
 

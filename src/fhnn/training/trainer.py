@@ -362,14 +362,17 @@ class Trainer:
         sc = LossScales.of(self.train_pairs)
         self.scales = (jnp.asarray(sc.deriv), jnp.asarray(sc.step))
         self.optimizer = self.optimizer_for(config)
-        self._train = {**self.train_pairs.as_jax(), **config.start_variance(len(self.train_pairs))}
+        self._train = self.batch(self.train_pairs)
         # a fixed key for the stochastic parts of a model's objective (DHN's denoising) on validation
-        self._val = {
-            **self.val_pairs.as_jax(),
-            **config.start_variance(len(self.val_pairs)),
-            "key": jax.random.PRNGKey(config.seed + 3),
-        }
+        self._val = self.batch(self.val_pairs, jax.random.PRNGKey(config.seed + 3))
         self._key = jax.random.PRNGKey(config.seed + 1)
+
+    def batch(self, windows: Windows, key: Array | None = None) -> dict[str, Array]:
+        """The arrays a model's loss reads from ``windows`` (:meth:`Windows.as_jax`), with their
+        start-error variances (``TrainConfig.start_variance``) and, when given, ``key`` for the
+        stochastic parts of an objective."""
+        out = {**windows.as_jax(), **self.config.start_variance(len(windows))}
+        return out if key is None else {**out, "key": key}
 
     def deadline(self, phase: str) -> float:
         """When ``phase`` ("warmup", "adam" or "lbfgs") must end under ``config.max_time``
@@ -496,12 +499,7 @@ class Trainer:
         step 0; "lbfgs": at the steps after Adam's). ``give_up(record)`` true at a record, or the
         phase's time budget spent (:meth:`deadline`), ends the phase there."""
         cfg = self.config
-        windows = self.quasi_newton_windows()
-        batch = {
-            **windows.as_jax(),
-            **cfg.start_variance(len(windows)),
-            "key": jax.random.PRNGKey(cfg.seed + 4),
-        }
+        batch = self.batch(self.quasi_newton_windows(), jax.random.PRNGKey(cfg.seed + 4))
         params, static = eqx.partition(start, eqx.is_array)
         flat, unravel = ravel_pytree(params)
         scales = self.scales
