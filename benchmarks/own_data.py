@@ -388,6 +388,10 @@ def ensemble_scores(
         "intervals": rows,
         # the members' median scored as the single run is (the same points and σ bands)
         "median_recovery": recovery_scores(coefficient_recovery(median, scored)),
+        "members_mean_rel": [
+            recovery_scores(coefficient_recovery(m.coefficients, scored))["coefficients_mean_rel"]
+            for m in models
+        ],
         "forecast_band": band_scores(band, fine),
     }
 

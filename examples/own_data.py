@@ -19,7 +19,7 @@ Every step is the command a user types (printed before it runs):
    coefficients that ``inspect`` drew.
 
 ``--fast`` shrinks the data and training to seconds (the tests run it so: every command must
-work); the README's pictures come from a full run (12 min 24 s on 2 cores).
+work); the README's pictures come from a full run (12 min 8 s on 2 cores).
 """
 
 from __future__ import annotations
