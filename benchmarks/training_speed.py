@@ -160,7 +160,7 @@ def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:
     cfg = TrainConfig(steps=steps, seed=seed)
     tr = Trainer(cfg, ds.train, ds.val)
     state = tr.init(fresh(ds, seed))
-    rest = (tr._train, tr.scales, tr._key, cfg.only(ADAM_FIELDS), True)
+    rest = (tr._train, tr.scales, tr._key, None, cfg.only(ADAM_FIELDS), True)
     step = StoredProgram(adam_step) if stored else adam_step
     t0 = time.perf_counter()
     model, opt_state, _ = step(state.model, state.opt_state, jnp.asarray(0), *rest)
