@@ -928,6 +928,7 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
     ``coefficients.csv`` / ``flow.nc`` of the ensemble (with ``_lo`` / ``_hi``) in the folder."""
     from fhnn.evaluation.recovery import visited_r_sigma
     from fhnn.experiments.exports import ensemble_intervals, write_coefficients_csv, write_flow_netcdf
+    from fhnn.training.ensemble import LEVEL
 
     _, runs, dataset = _load_runs(folder, data, fhnn_only=True)
     models = [r.state.best_model for r in runs]
@@ -978,7 +979,8 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
         )
     bootstrap = all(r.train_config.bootstrap for r in runs)
     stdout.print(
-        f"the interval: the members' mean ± t(0.95; {len(models) - 1}) · s · √(1 + 1/{len(models)}) "
+        f"the interval: the members' mean ± t({0.5 + LEVEL / 2:g}; {len(models) - 1}) · s · "
+        f"√(1 + 1/{len(models)}) "
         + (
             "— members trained on bootstrap resamples, so it holds the data's sampling noise and the "
             "initialisation's"
