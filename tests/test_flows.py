@@ -7,7 +7,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fhnn.physics.flows import CylinderFlow, DeepWaterWave, LambOseenVortex, SolidBodyRotation
+from fhnn.physics.flows import (
+    CylinderFlow,
+    DeepWaterWave,
+    LambOseenVortex,
+    SolidBodyRotation,
+    SuperposedFlow,
+)
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
 
 H = 1e-5
@@ -63,6 +69,18 @@ def test_cylinder_is_a_streamline():
         assert abs(float(np.dot(np.asarray(flow.velocity(xy, 0.0)), normal))) < 1e-14
     # far field: the uniform stream
     np.testing.assert_allclose(np.asarray(flow.velocity(jnp.asarray([1e4, 0.0]), 0.0)), [0.3, 0], atol=1e-4)
+
+
+def test_only_a_flow_with_a_body_in_it_has_points_outside_the_fluid(rng):
+    cylinder = CylinderFlow(stream_speed=0.3, radius=0.5, circulation=0.5)
+    points = rng.uniform(-1.0, 1.0, (2000, 2))
+    r = np.hypot(points[:, 0], points[:, 1])
+    np.testing.assert_array_equal(cylinder.in_fluid(points), r >= 0.5)
+    assert cylinder.in_fluid(np.array([[0.5, 0.0], [0.0, -0.4999]])).tolist() == [True, False]
+    vortex = LambOseenVortex(gamma=5.0, core_radius=1.0)
+    assert vortex.in_fluid(points).all()
+    both = SuperposedFlow((vortex, cylinder))
+    np.testing.assert_array_equal(both.in_fluid(points), r >= 0.5)
 
 
 def test_wave_material_derivative_against_finite_differences_and_closed_form(rng):

@@ -7,7 +7,8 @@
   that share is small the data constrain ``c_q`` only weakly (the drag force is
   ``−(½ρA c_q σ + c_l) v_rel``, so ``c_q`` at small σ is a small correction to ``c_l``).
 - Flow: relative L2 error ``‖u_θ − u‖ / ‖u‖`` over the grid points (within the bounding box of
-  the training positions) that lie within ``reach`` of a training position.
+  the training positions) that lie within ``reach`` of a training position and in the fluid (not
+  inside a solid body such as the obstacle's cylinder).
 """
 
 from __future__ import annotations
@@ -204,17 +205,24 @@ def flow_box(
     dataset: Dataset, *, n: int = 60, reach: float = 0.25
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """An ``n × n`` grid over the training positions' bounding box: ``x`` ``(n,)``, ``y`` ``(n,)``
-    [m] and ``near`` ``(n, n)`` (indexed ``[y, x]``), true within ``reach`` m of a sample."""
+    [m] and ``near`` ``(n, n)`` (indexed ``[y, x]``), true within ``reach`` m of a sample and, for
+    simulated data, in the fluid (:meth:`AbstractFlow.in_fluid`: not inside the obstacle's
+    cylinder, which ``reach`` crosses where trajectories pass close to it)."""
     pos = dataset.train.states_clean[dataset.train.mask][:, :2]
     lo, hi = pos.min(axis=0), pos.max(axis=0)
     x, y = np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n)
     gx, gy = np.meshgrid(x, y)
-    dist, _ = cKDTree(pos).query(np.column_stack([gx.ravel(), gy.ravel()]))
-    return x, y, (dist <= reach).reshape(n, n)
+    points = np.column_stack([gx.ravel(), gy.ravel()])
+    dist, _ = cKDTree(pos).query(points)
+    near = dist <= reach
+    if not dataset.imported:
+        near &= dataset.scenario_object().flow().in_fluid(points)
+    return x, y, near.reshape(n, n)
 
 
 def flow_grid(dataset: Dataset, *, n: int = 60, reach: float = 0.25) -> np.ndarray:
-    """Grid points ``(P, 2)`` in the training data's bounding box within ``reach`` m of a sample."""
+    """Grid points ``(P, 2)`` in the training data's bounding box within ``reach`` m of a sample
+    and in the fluid (see :func:`flow_box`)."""
     x, y, near = flow_box(dataset, n=n, reach=reach)
     gx, gy = np.meshgrid(x, y)
     return np.column_stack([gx.ravel(), gy.ravel()])[near.ravel()]

@@ -38,8 +38,10 @@ TRAJECTORY_TABLES: tuple[tuple[str, str, tuple[str, ...], tuple[int, ...]], ...]
 )
 CAPTIONS = {key: caption for key, caption, _, _ in TRAJECTORY_TABLES}
 CAPTIONS["T6"] = (
-    "FHNN parameter and flow recovery: max relative error over the data's (r, σ) range. Without "
-    "actuation (solid_body_vortex, *_noact) only c / (M + m_a) is identifiable"
+    "FHNN parameter and flow recovery: max relative error over the data's (r, σ) range; flow: "
+    "relative L2 error of the velocity on a grid over the fluid within 0.25 m of a training position "
+    "(not inside the obstacle's cylinder), over the data's time window for a time-dependent flow. "
+    "Without actuation (solid_body_vortex, *_noact) only c / (M + m_a) is identifiable"
 )
 RECOVERY_METRICS = ("m_ax", "m_ay", "c_q", "c_l", "flow")
 METRIC_NAMES = {

@@ -19,6 +19,7 @@ import math
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.scipy.special import exp1
 
 from fhnn.physics.numerics import safe_norm_squared
@@ -39,6 +40,13 @@ class AbstractFlow(eqx.Module):
     @abc.abstractmethod
     def stream(self, xy: Array, t: Array) -> Array:
         """Stream function ψ [m²/s] at ``xy`` (shape ``(2,)``, m) and time ``t`` [s]; scalar."""
+
+    def in_fluid(self, points: np.ndarray) -> np.ndarray:
+        """Whether each of ``points`` ``(P, 2)`` [m] lies in the fluid, ``(P,)`` bool: false inside
+        a solid body the flow goes around, where its formula is a continuation no body meets and
+        no data can inform (evaluation leaves such points out). Everywhere true but for a flow
+        with a body in it."""
+        return np.ones(np.shape(points)[0], dtype=bool)
 
     def velocity(self, xy: Array, t: Array) -> Array:
         """Flow velocity ``u = (∂ψ/∂y, −∂ψ/∂x)`` [m/s], shape ``(2,)``."""
@@ -169,6 +177,9 @@ class SuperposedFlow(AbstractFlow):
     def time_dependent(self) -> bool:
         return any(p.time_dependent for p in self.parts)
 
+    def in_fluid(self, points: np.ndarray) -> np.ndarray:
+        return np.logical_and.reduce([p.in_fluid(points) for p in self.parts])
+
     def stream(self, xy: Array, t: Array) -> Array:
         return sum(p.stream(xy, t) for p in self.parts)  # type: ignore[return-value]
 
@@ -190,6 +201,10 @@ class CylinderFlow(AbstractFlow):
     stream_speed: float
     radius: float
     circulation: float
+
+    def in_fluid(self, points: np.ndarray) -> np.ndarray:
+        """Outside the cylinder: ``r ≥ R``."""
+        return np.hypot(*np.asarray(points, float).T) >= self.radius
 
     def stream(self, xy: Array, t: Array) -> Array:
         r2 = safe_norm_squared(xy)
