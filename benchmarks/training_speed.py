@@ -12,10 +12,11 @@
    trainer runs it, read untraced from the executable the first job stored
    (:mod:`fhnn.executables`), against the plain jitted step, traced and looked up in JAX's
    persistent cache.
-3. Seeds trained as one program: ``N`` models stacked and one ``vmap``-ed Adam step, against ``N``
-   sequential steps (throughput ratio), for the step with every loss term and the flow penalty
-   and for the step ``fhnn train`` runs (the default plan's loss and width); and one model at
-   ``N`` times the batch, which shows how far the step is compute-bound.
+3. Seeds trained as one program: ``N`` models stacked and one ``vmap``-ed chunk of Adam steps (the
+   program the trainer runs), against ``N`` sequential chunks (throughput ratio, per step), for
+   the step with every loss term and the flow penalty and for the step ``fhnn train`` runs (the
+   default plan's loss and width); and one model at ``N`` times the batch, which shows how far
+   the step is compute-bound.
 4. With ``--targets``: time to the accuracy targets (``benchmarks/fhnn_targets.py``: the default
    plan, as ``fhnn train`` runs it) against this project's earlier times (296 s
    ``solid_body_vortex``, 495 s ``steady_vortex``) and the authors' JAX code (1,978 s for its
@@ -54,11 +55,12 @@ from fhnn.runtime import use_compilation_cache
 from fhnn.training.plans import DEFAULT_PLAN, PLANS
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import (
+    ADAM_CHUNK,
     ADAM_FIELDS,
     TrainConfig,
     Trainer,
+    adam_chunk,
     adam_step,
-    adam_steps,
     loss_terms,
     quasi_newton_objective,
     stack,
@@ -98,6 +100,24 @@ def phases(ds) -> None:
         f"  Adam step of the default plan        {t_plan * 1e3:7.2f} ms  "
         f"(ratio {t_plan / step[True]:.2f}: derivative loss alone, no penalty)"
     )
+    # what the trainer runs: ADAM_CHUNK steps per call, as the stored program it calls
+    chunk = StoredProgram(adam_chunk)
+    n = jnp.asarray(ADAM_CHUNK)
+    t_chunk = (
+        seconds_per_call(
+            lambda: chunk(m, o, jnp.asarray(1), n, tr._train, tr.scales, tr._key, None, plan, False), 20
+        )
+        / ADAM_CHUNK
+    )
+    stored = StoredProgram(adam_step)
+    t_stored = seconds_per_call(
+        lambda: stored(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, None, plan, False), 100
+    )
+    print(
+        f"    as the trainer runs it, {ADAM_CHUNK} steps per call {t_chunk * 1e3:7.2f} ms per step; "
+        f"one step per call {t_stored * 1e3:.2f} ms (ratio {t_stored / t_chunk:.2f}: the call's "
+        "dispatch, paid once per chunk)"
+    )
     batch = {k: v[:256] for k, v in tr._train.items()} | {"key": jax.random.PRNGKey(0)}
     for which in (("deriv",), ("step",), ("deriv", "step"), ("flow",)):
         grad = eqx.filter_jit(
@@ -123,7 +143,7 @@ def phases(ds) -> None:
 
 
 def compile_times(ds, path: Path) -> None:
-    print("2. compilation of the Adam step (first two calls minus two steps)")
+    print("2. compilation of the Adam program the trainer runs (first two calls minus two calls)")
     cfg = TrainConfig(steps=1000)
     with tempfile.TemporaryDirectory() as cache:
         script = (
@@ -152,21 +172,23 @@ def compile_times(ds, path: Path) -> None:
 
 
 def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:
-    """Seconds of the first two Adam steps of a new trainer (the second is fed the first's model
-    and optimiser state, as in training, so a program compiled again for them is counted), less two
-    compiled steps: the step as the trainer runs it (``stored``: a
-    :class:`~fhnn.executables.StoredProgram`, whose exported module a process stored before is
-    read untraced from the compilation cache folder), or the plain jitted step."""
+    """Seconds of the first two calls of a new trainer's Adam program (one step each; the second
+    is fed the first's model and optimiser state, as in training, so a program compiled again for
+    them is counted), less two compiled calls: the program as the trainer runs it (``stored``: a
+    :class:`~fhnn.executables.StoredProgram` of :func:`adam_chunk`, whose exported module a
+    process stored before is read untraced from the compilation cache folder), or the plain jitted
+    program."""
     cfg = TrainConfig(steps=steps, seed=seed)
     tr = Trainer(cfg, ds.train, ds.val)
     state = tr.init(fresh(ds, seed))
+    one = jnp.asarray(1)
     rest = (tr._train, tr.scales, tr._key, None, cfg.only(ADAM_FIELDS), True)
-    step = StoredProgram(adam_step) if stored else adam_step
+    step = StoredProgram(adam_chunk) if stored else adam_chunk
     t0 = time.perf_counter()
-    model, opt_state, _ = step(state.model, state.opt_state, jnp.asarray(0), *rest)
-    model, opt_state, _ = jax.block_until_ready(step(model, opt_state, jnp.asarray(1), *rest))
+    model, opt_state, _ = step(state.model, state.opt_state, jnp.asarray(0), one, *rest)
+    model, opt_state, _ = jax.block_until_ready(step(model, opt_state, jnp.asarray(1), one, *rest))
     first = time.perf_counter() - t0
-    return first - 2 * seconds_per_call(lambda: step(model, opt_state, jnp.asarray(2), *rest), 10)
+    return first - 2 * seconds_per_call(lambda: step(model, opt_state, jnp.asarray(2), one, *rest), 10)
 
 
 def seeds_as_one(ds, n: int) -> None:
@@ -192,15 +214,20 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
     models = stack([s.model for s in states])
     opts = stack([s.opt_state for s in states])
 
-    def step(model, opt_state, key, config):
-        return adam_step(model, opt_state, jnp.asarray(1), data, scales, key, None, config, regularize)
+    size = jnp.asarray(ADAM_CHUNK)
 
-    # the program fhnn train --seeds N runs for its members' Adam phases (trainer.run_together)
-    one = seconds_per_call(
-        lambda: adam_steps(models, opts, jnp.asarray(1), data, scales, keys, None, ac, regularize), 100
-    )
-    seq = seconds_per_call(
-        lambda: [step(s.model, s.opt_state, k, ac) for s, k in zip(states, keys, strict=True)], 100
+    def chunk(model, opt_state, key, config):
+        return adam_chunk(model, opt_state, jnp.asarray(1), size, data, scales, key, None, config, regularize)
+
+    # the programs the trainer runs: ADAM_CHUNK steps per call, for one member and (fhnn train
+    # --seeds N, trainer.run_together) for the members stacked
+    stacked = (models, opts, jnp.asarray(1), size, data, scales, keys, None, ac, regularize, True)
+    one = seconds_per_call(lambda: adam_chunk(*stacked), 10) / ADAM_CHUNK
+    seq = (
+        seconds_per_call(
+            lambda: [chunk(s.model, s.opt_state, k, ac) for s, k in zip(states, keys, strict=True)], 10
+        )
+        / ADAM_CHUNK
     )
     print(
         f"  {label}: {n} sequential steps {seq * 1e3:7.2f} ms; one vmapped step {one * 1e3:7.2f} ms; "
@@ -209,12 +236,12 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
     # why: a step's time grows with the pairs it sees, so stacking seeds stacks work
     m, o = states[0].model, states[0].opt_state
     wide = cfg.replace(batch_size=n * cfg.batch_size).only(ADAM_FIELDS)
-    single = seconds_per_call(lambda: step(m, o, keys[0], ac), 100)
-    bigger = seconds_per_call(lambda: step(m, o, keys[0], wide), 100)
+    single = seconds_per_call(lambda: chunk(m, o, keys[0], ac), 10) / ADAM_CHUNK
+    bigger = seconds_per_call(lambda: chunk(m, o, keys[0], wide), 10) / ADAM_CHUNK
     print(
         f"    one model, batch {cfg.batch_size} -> {n * cfg.batch_size}: {single * 1e3:.2f} -> "
-        f"{bigger * 1e3:.2f} ms (×{bigger / single:.2f} for ×{n} the pairs; in the sequential loop a "
-        f"step took {seq / n * 1e3:.2f} ms, {seq / n / single:.2f}× a lone step)"
+        f"{bigger * 1e3:.2f} ms per step (×{bigger / single:.2f} for ×{n} the pairs; in the sequential "
+        f"loop a step took {seq / n * 1e3:.2f} ms, {seq / n / single:.2f}× a lone step)"
     )
 
 

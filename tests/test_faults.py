@@ -166,10 +166,10 @@ def test_a_guard_stops_training_keeps_the_best_model_and_says_so(
     )
     vals = iter(np.arange(1.0, 100.0))
 
-    def step(model, opt_state, i, *rest):
-        return model, opt_state, {"loss": np.nan, "deriv": np.nan, "skipped": float(fault == "nan")}
+    def chunk(model, opt_state, i, n, *rest):
+        return model, opt_state, {"loss": np.nan, "deriv": np.nan, "skipped": float(fault == "nan") * n}
 
-    monkeypatch.setattr(trainer_module, "adam_step", step)
+    monkeypatch.setattr(trainer_module, "adam_chunk", chunk)
     monkeypatch.setattr(
         trainer_module.Trainer,
         "validate",

@@ -242,6 +242,12 @@ WARMUP_GIVE_UP = 1e4
 #: Adam's noise floor).
 PRE_POLISH_SHARE = 0.5
 
+#: Adam steps run as one compiled program between the trainer's looks at the clock (at most; see
+#: :func:`adam_chunk_end`), and the wall time a chunk should not exceed once a step's time is known
+#: (so a time budget is still checked every half second with slow steps).
+ADAM_CHUNK = 50
+CHUNK_SECONDS = 0.5
+
 #: Loss terms that are regularisers: weighted by the annealed ``lambda_flow``, left out of validation.
 REGULARIZERS = ("flow",)
 
@@ -303,6 +309,10 @@ def stop_reason(history: list[dict[str, Any]], config: TrainConfig) -> str | Non
     return None
 
 
+#: The stream of :func:`bootstrap_weights`'s generator beside the seed (apart from the others).
+BOOTSTRAP_STREAM = 5
+
+
 def bootstrap_weights(traj: np.ndarray, n_traj: int, seed: int) -> np.ndarray:
     """Weights ``(P,)`` of windows from trajectories ``traj`` ``(P,)`` (indices below ``n_traj``)
     under a bootstrap resample of the trajectories drawn from ``seed``: ``n_traj`` draws with
@@ -315,10 +325,6 @@ def bootstrap_weights(traj: np.ndarray, n_traj: int, seed: int) -> np.ndarray:
     if not weights.any():
         raise ConfigError("training: the bootstrap resample drew no trajectory that has a training window")
     return weights
-
-
-#: The stream of :func:`bootstrap_weights`'s generator beside the seed (apart from the others).
-BOOTSTRAP_STREAM = 5
 
 
 class Trainer:
@@ -353,7 +359,6 @@ class Trainer:
         self.window_weights = (
             bootstrap_weights(self.train_pairs.traj, train.n_traj, config.seed) if config.bootstrap else None
         )
-        self._weights = None if self.window_weights is None else jnp.asarray(self.window_weights, float)
         val_pairs = Windows.of(val, window, skip=config.first_start)
         if len(val_pairs) > config.val_pairs:
             idx = np.random.default_rng(config.seed).choice(len(val_pairs), config.val_pairs, replace=False)
@@ -688,31 +693,59 @@ def draw_batch(key: Array, n: int, size: int, weights: Array | None = None) -> A
     return jax.random.choice(key, n, (size,), p=weights)
 
 
-@eqx.filter_jit
-def adam_steps(
-    models: AbstractModel,
-    opt_states: Any,
+def _adam_chunk(
+    model: AbstractModel,
+    opt_state: Any,
     i: Array,
+    n: Array,
     data: dict[str, Array],
     scales: tuple[Array, Array],
-    keys: Array,
+    key: Array,
     weights: Array | None,
     config: TrainConfig,
     regularize: bool,
+    stacked: bool = False,
 ) -> tuple[AbstractModel, Any, dict[str, Array]]:
-    """:func:`adam_step` of ``K`` members as one program (``jax.vmap``): ``models``, ``opt_states``,
-    ``keys`` ``(K, 2)`` and ``weights`` ``(K, P)`` (or None) hold the members' arrays stacked on a
-    leading axis (:func:`stack`), and so do the outputs (each loss term ``(K,)``). The members
-    share the data, the step and the configuration; each draws its own minibatch from its own key
-    and weights, as it would alone."""
+    """Adam steps ``i, i + 1, …, i + n − 1`` (:func:`adam_step`; ``n ≥ 1``) in one program: a loop
+    whose trip count ``n`` is an argument, so one compiled program serves every chunk length and
+    each step is the same computation whatever the chunking. Returns the model and optimiser state
+    after the last step and that step's loss terms, with ``"skipped"`` the count of skipped steps
+    in the chunk. (Called once per step, the trainer spent 0.41 of a step's 0.94 ms in dispatch on
+    ``steady_vortex``'s default plan: ``benchmarks/training_speed.py``.)
 
-    def one(
-        model: AbstractModel, opt_state: Any, key: Array, w: Array | None
-    ) -> tuple[AbstractModel, Any, dict[str, Array]]:
-        return _adam_step(model, opt_state, i, data, scales, key, w, config, regularize)
+    ``stacked`` (static): the chunk of ``K`` members as one program (``jax.vmap``): ``model``,
+    ``opt_state``, ``key`` ``(K, 2)`` and ``weights`` ``(K, P)`` (or None) hold the members'
+    arrays stacked on a leading axis (:func:`stack`), and so do the outputs (each loss term
+    ``(K,)``). The members share the data, the steps and the configuration; each draws its own
+    minibatches from its own key and weights, as it would alone."""
+    if stacked:
 
-    axes = (eqx.if_array(0), eqx.if_array(0), 0, eqx.if_array(0))
-    return eqx.filter_vmap(one, in_axes=axes)(models, opt_states, keys, weights)
+        def member(m: AbstractModel, o: Any, k: Array, w: Array | None) -> tuple:
+            return _adam_chunk(m, o, i, n, data, scales, k, w, config, regularize)
+
+        axes = (eqx.if_array(0), eqx.if_array(0), 0, eqx.if_array(0))
+        return eqx.filter_vmap(member, in_axes=axes)(model, opt_state, key, weights)
+    params, static = eqx.partition(model, eqx.is_array)
+
+    def step(k: Array, p: Any, o: Any) -> tuple[Any, Any, dict[str, Array]]:
+        model = eqx.combine(p, static)
+        m, o, terms = _adam_step(model, o, i + k, data, scales, key, weights, config, regularize)
+        return eqx.filter(m, eqx.is_array), o, terms
+
+    shapes = jax.eval_shape(step, jnp.asarray(0), params, opt_state)[2]
+    terms0 = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
+
+    def body(k: Array, carry: tuple[Any, Any, dict[str, Array], Array]) -> tuple:
+        p, o, _, skipped = carry
+        p, o, terms = step(k, p, o)
+        return p, o, terms, skipped + terms["skipped"]
+
+    carry = (params, opt_state, terms0, jnp.zeros((), terms0["skipped"].dtype))
+    params, opt_state, terms, skipped = jax.lax.fori_loop(0, n, body, carry)
+    return eqx.combine(params, static), opt_state, {**terms, "skipped": skipped}
+
+
+adam_chunk = eqx.filter_jit(_adam_chunk)
 
 
 def stack(trees: list[Any]) -> Any:
@@ -755,15 +788,15 @@ def run_together(
     checkpoints: list[Callable[[TrainState], None] | None],
     checkpoint_seconds: float = 60.0,
 ) -> list[TrainState]:
-    """The Adam phase of several members (runs differing only in their seed, see
-    :func:`can_run_together`) as one ``vmap``-ed program per step (:func:`adam_steps`), each member
-    otherwise as :meth:`Trainer.run` trains it alone: the same minibatches, validations, records,
-    guards and checkpoints (``callbacks[j]`` and ``checkpoints[j]`` for member ``j``). A member whose
-    guard or budget ends its Adam phase leaves the group; the rest go on as a smaller one (one more
-    compilation). Under a time budget each member is charged its share of the group's time (the
-    wall time over the members training), so a member's budget buys the steps it would alone.
-    Against sequential members this trades nothing but the order of floating-point sums; for the
-    throughput it buys see ``docs/benchmarks/training_speed*.txt``."""
+    """The Adam phase of several members (runs differing only in their seed, see :func:`can_run_together`) as
+    one ``vmap``-ed program per chunk of steps (:func:`adam_chunk`, stacked), each member otherwise as
+    :meth:`Trainer.run` trains it alone: the same minibatches, validations, records, guards and
+    checkpoints (``callbacks[j]`` and ``checkpoints[j]`` for member ``j``). A member whose guard or budget
+    ends its Adam phase leaves the group; the rest go on as a smaller one (one more compilation). Under a
+    time budget each member is charged its share of the group's time (the wall time over the members
+    training), so a member's budget buys the steps it would alone. Against sequential members this trades
+    nothing but the order of floating-point sums; for the throughput it buys see
+    ``docs/benchmarks/training_speed*.txt``."""
     _adam_phase(trainers, states, callbacks, checkpoints, trainers[0].config.steps, checkpoint_seconds)
     return states
 
@@ -776,9 +809,11 @@ def _adam_phase(
     until: int,
     checkpoint_seconds: float,
 ) -> None:
-    """The Adam loop of :meth:`Trainer.run` (one member: :func:`adam_step` on its own arrays) and
-    of :func:`run_together` (several: :func:`adam_steps` on their stacked arrays), from the
-    members' common ``state.step`` up to ``until``; the states are updated in place."""
+    """The Adam loop of :meth:`Trainer.run` (one member: :func:`adam_chunk` on its own arrays) and
+    of :func:`run_together` (several: :func:`adam_chunk` on their stacked arrays), from the
+    members' common ``state.step`` up to ``until``, in chunks of steps (:func:`adam_chunk_end`)
+    between which it validates, checkpoints, reports progress and looks at the time budget; the
+    states are updated in place."""
     cfg = trainers[0].config
     adam_cfg = cfg.only(ADAM_FIELDS)
     data, scales = trainers[0]._train, trainers[0].scales
@@ -786,31 +821,42 @@ def _adam_phase(
     member = (lambda tree, pos: tree) if alone else take
     if alone:
         models, opts, keys = states[0].model, states[0].opt_state, trainers[0]._key
-        weights = trainers[0]._weights
+        own = trainers[0].window_weights
+        weights = None if own is None else jnp.asarray(own, float)
     else:
         models, opts = stack([s.model for s in states]), stack([s.opt_state for s in states])
         keys = jnp.stack([t._key for t in trainers])
-        weights = None if trainers[0]._weights is None else jnp.stack([t._weights for t in trainers])
+        weights = (
+            None
+            if trainers[0].window_weights is None
+            else jnp.asarray(np.stack([t.window_weights for t in trainers]), float)
+        )
     skipped = jnp.asarray([s.skipped for s in states])  # (members,), also for one
     active = list(range(len(trainers)))
     saved = tick = time.monotonic()
-    for i in range(states[0].step, until):
+    per_step = 0.0  # measured seconds per step (per chunk), for the chunks' length
+    i = states[0].step
+    while i < until:
         regularize = cfg.regularizes(i)
+        left = min(trainers[j].deadline("adam") for j in active) - time.monotonic()
+        end = adam_chunk_end(cfg, i, until, per_step, left)
         name = f"adam-{regularize}" if alone else f"adam-{regularize}-{len(active)}"
         lead = trainers[active[0]]
         first, before = name not in lead._programs, lead.started
         models, opts, last = lead._uncounted_first(
             name,
-            adam_step if alone else adam_steps,
+            adam_chunk,
             models,
             opts,
             jnp.asarray(i),
+            jnp.asarray(end - i),
             data,
             scales,
             keys,
             weights,
             adam_cfg,
             regularize,
+            not alone,
         )
         now = time.monotonic()
         for j in active:  # compilation is nobody's time; the rest is shared (alone: all its own)
@@ -818,17 +864,19 @@ def _adam_phase(
             if first and trainer is not lead:
                 trainer.started += lead.started - before
             trainer.started += 0.0 if first else (now - tick) * (1.0 - 1.0 / len(active))
+        if not first:
+            per_step = (now - tick) / (end - i)
         tick = now
+        i = end
         skipped = skipped + last["skipped"]
-        done = i + 1
+        done = end
         ended = []
         due = time.monotonic() - saved >= checkpoint_seconds
         for pos, j in enumerate(active):
             trainer, state = trainers[j], states[j]
-            trainer._tell("adam", done)
             late = None if done == cfg.steps else trainer._over_budget("adam", done, cfg.steps, "Adam")
             if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
-                record = adam_record(cfg, i, member(last, pos), skipped[pos])
+                record = adam_record(cfg, done - 1, member(last, pos), skipped[pos])
                 skipped = skipped.at[pos].set(0.0)
                 state.opt_state, state.skipped = member(opts, pos), 0.0
                 if trainer._record(state, member(models, pos), record, callbacks[j], stop=cfg, late=late):
@@ -839,6 +887,7 @@ def _adam_phase(
                 state.step, state.skipped = done, float(skipped[pos])
                 checkpoints[j](state)  # type: ignore[misc]
                 saved = time.monotonic()
+            trainer._tell("adam", done)  # after the record or checkpoint: progress that is saved
         if ended:
             active = [j for p, j in enumerate(active) if p not in ended]
             if not active:
@@ -851,6 +900,23 @@ def _adam_phase(
         state = states[j]
         state.model, state.opt_state = member(models, pos), member(opts, pos)
         state.step, state.skipped = max(state.step, until), float(skipped[pos])
+
+
+def adam_chunk_end(
+    config: TrainConfig, i: int, until: int, per_step: float = 0.0, left: float = np.inf
+) -> int:
+    """Where the chunk of Adam steps starting at step ``i`` ends (exclusive): at the next multiple
+    of :data:`ADAM_CHUNK` or of ``val_every`` (a validation), at ``until``, where the flow penalty
+    is dropped (:meth:`TrainConfig.regularizes`: another program), after at most
+    :data:`CHUNK_SECONDS` of steps taking ``per_step`` seconds each (0: unknown), and once the
+    ``left`` seconds of the time budget are used (one step when they are, or when nothing is left)."""
+    end = min(until, (i // ADAM_CHUNK + 1) * ADAM_CHUNK, (i // config.val_every + 1) * config.val_every)
+    if left <= 0:
+        end = i + 1
+    elif per_step > 0:
+        end = min(end, i + max(1, int(min(CHUNK_SECONDS, left) / per_step)))
+    regularize = config.regularizes(i)
+    return next((k for k in range(i + 1, end) if config.regularizes(k) != regularize), end)
 
 
 def adam_record(config: TrainConfig, i: int, terms: dict[str, Array], skipped: Array) -> dict[str, Any]:
