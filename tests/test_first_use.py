@@ -3,6 +3,7 @@ interrupting and resuming training, finished runs and --extend."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import stat
@@ -226,26 +227,32 @@ def test_version_scenario_units_and_the_near_initial_note(
 
 
 def test_progress_is_told_after_every_step_of_each_phase(data_file: Path) -> None:
-    """Every step is told (the fault tests' kills land at an exact step; the CLI throttles its bar)."""
+    """Every quasi-Newton step is told, and every chunk of Adam steps (one compiled call of at most
+    ``ADAM_CHUNK`` steps, ending at each validation and at each multiple of ``ADAM_CHUNK``): the
+    fault tests' kills land there; the CLI throttles its bar."""
     from fhnn.data.dataset import read_dataset
     from fhnn.models.registry import MODELS
-    from fhnn.training.trainer import TrainConfig, Trainer
+    from fhnn.training.trainer import ADAM_CHUNK, TrainConfig, Trainer
 
     ds = read_dataset(data_file)
     told: list[tuple[str, int]] = []
-    config = TrainConfig(steps=3, val_every=3, warmup_steps=2, lbfgs_steps=2, lbfgs_pairs=50, batch_size=8)
+    steps = 2 * ADAM_CHUNK + 20
+    config = TrainConfig(
+        steps=steps, val_every=ADAM_CHUNK + 30, warmup_steps=2, lbfgs_steps=2, lbfgs_pairs=50, batch_size=8
+    )
     trainer = Trainer(config, ds.train, ds.val, on_step=lambda phase, step: told.append((phase, step)))
     model = MODELS["fhnn"].make(
         MODELS["fhnn"].config.from_dict({"width": 8}), MODELS["fhnn"].arguments(ds), 0
     )
     state = trainer.polish(trainer.run(trainer.warmup(trainer.init(model))))
-    assert state.step == 5
-    assert told == [
-        ("warmup", 0),
-        ("warmup", 0),
-        ("adam", 1),
-        ("adam", 2),
-        ("adam", 3),
-        ("lbfgs", 4),
-        ("lbfgs", 5),
+    assert state.step == steps + 2
+    adam = [step for phase, step in told if phase == "adam"]
+    assert told[:2] == [("warmup", 0), ("warmup", 0)] and told[-2:] == [
+        ("lbfgs", steps + 1),
+        ("lbfgs", steps + 2),
     ]
+    assert told[2:-2] == [("adam", step) for step in adam]
+    # strictly increasing, no chunk longer than ADAM_CHUNK, every validation and multiple of it told
+    assert all(0 < b - a <= ADAM_CHUNK for a, b in itertools.pairwise([0, *adam]))
+    assert {ADAM_CHUNK, ADAM_CHUNK + 30, 2 * ADAM_CHUNK, steps} <= set(adam) and adam[-1] == steps
+    assert [r["step"] for r in state.history if r.get("phase") is None] == [ADAM_CHUNK + 30, steps]

@@ -287,7 +287,8 @@ class Run:
 
     def trainer(self, dataset: Dataset, on_step: Callable[[str, int], None] | None = None) -> Trainer:
         """The :class:`~fhnn.training.trainer.Trainer` of this run on ``dataset`` (its training
-        windows sized for the model); ``on_step(phase, step)`` is told of every step."""
+        windows sized for the model); ``on_step(phase, step)`` is told of every quasi-Newton step and
+        every chunk of Adam steps."""
         skeleton = self.skeleton()
         window = skeleton.window
         if isinstance(skeleton, AbstractVectorField):  # a vector field takes the multi-step loss

@@ -340,8 +340,9 @@ class Trainer:
         on_step: Callable[[str, int], None] | None = None,
     ) -> None:
         """``on_step(phase, step)`` (optional) is told of progress between records, after every
-        step (a cheap call: a progress bar throttles its own redrawing); phase is "warmup", "adam"
-        or "lbfgs", step counts as in the history."""
+        quasi-Newton step and every chunk of Adam steps (:func:`adam_chunk_end`; a cheap call: a
+        progress bar throttles its own redrawing); phase is "warmup", "adam" or "lbfgs", step
+        counts as in the history."""
         self.config = config
         self._on_step = on_step
         #: The start of ``config.max_time``: when this trainer was made, moved later by each
