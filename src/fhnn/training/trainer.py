@@ -822,16 +822,11 @@ def _adam_phase(
     member = (lambda tree, pos: tree) if alone else take
     if alone:
         models, opts, keys = states[0].model, states[0].opt_state, trainers[0]._key
-        own = trainers[0].window_weights
-        weights = None if own is None else jnp.asarray(own, float)
     else:
         models, opts = stack([s.model for s in states]), stack([s.opt_state for s in states])
         keys = jnp.stack([t._key for t in trainers])
-        weights = (
-            None
-            if trainers[0].window_weights is None
-            else jnp.asarray(np.stack([t.window_weights for t in trainers]), float)
-        )
+    own = [t.window_weights for t in trainers]
+    weights = None if own[0] is None else jnp.asarray(own[0] if alone else np.stack(own), float)
     skipped = jnp.asarray([s.skipped for s in states])  # (members,), also for one
     active = list(range(len(trainers)))
     saved = tick = time.monotonic()
@@ -868,9 +863,8 @@ def _adam_phase(
         if not first:
             per_step = (now - tick) / (end - i)
         tick = now
-        i = end
+        i = done = end
         skipped = skipped + last["skipped"]
-        done = end
         ended = []
         due = time.monotonic() - saved >= checkpoint_seconds
         for pos, j in enumerate(active):
