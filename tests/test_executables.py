@@ -98,6 +98,34 @@ def test_each_part_of_the_signature_is_in_the_key(store, monkeypatch, change):
     assert (other.stored, other.loaded) == (1, 0) and len(list(store.iterdir())) == 2
 
 
+@eqx.filter_jit
+def accumulate(x: jax.Array, state: dict, scale: jax.Array) -> tuple:
+    return x + scale * state["m"], {"m": state["m"] * 2.0, "n": state["n"] + 1}
+
+
+def test_donated_arguments_are_given_to_the_outputs_bitwise_and_the_others_kept(store, monkeypatch):
+    def fresh():
+        return jnp.arange(4.0), {"m": jnp.full(4, 0.5), "n": jnp.asarray(3)}, jnp.asarray(1.5)
+
+    expected = accumulate(*fresh())
+    for loaded in (False, True):  # compiled here, then read from disk by a new process
+        if loaded:
+            new_process(monkeypatch)
+        donating = StoredProgram(accumulate, donate=(0, 1))
+        x, state, scale = fresh()
+        out = donating(x, state, scale)
+        assert_same(out, expected)
+        assert (donating.stored, donating.loaded) == ((0, 1) if loaded else (1, 0))
+        assert x.is_deleted() and state["m"].is_deleted() and state["n"].is_deleted()
+        assert not scale.is_deleted()  # not donated: still the caller's
+        assert_same(donating(*out, scale), accumulate(*expected, scale))  # outputs fed back
+    # called as it is (no store): nothing donated
+    monkeypatch.setattr(executables, "store_folder", lambda: None)
+    x, state, scale = fresh()
+    assert_same(StoredProgram(accumulate, donate=(0, 1))(x, state, scale), expected)
+    assert not x.is_deleted()
+
+
 def test_a_damaged_file_is_discarded_and_compiled_again(store, monkeypatch, caplog):
     args = arguments()
     StoredProgram(program)(*args)
@@ -159,8 +187,8 @@ sc = get_scenario("steady_vortex")
 data = simulate_dataset(sc, SimulationConfig.for_scenario(sc, n_traj=4, duration=1.0, test_duration=1.0, dt=0.1))
 kind = MODELS["fhnn"]
 model = kind.make(FHNNConfig(width=8, depth=2), kind.arguments(data), 0)
-tr = Trainer(TrainConfig(steps=3, val_every=3, batch_size=8), data.train, data.val)
-state = tr.run(tr.init(model))
+tr = Trainer(TrainConfig(steps=3, val_every=3, batch_size=8, lbfgs_steps=5, lbfgs_pairs=16), data.train, data.val)
+state = tr.polish(tr.run(tr.init(model)))
 h = hashlib.sha256()
 for leaf in jax.tree.leaves(eqx.filter(state.model, eqx.is_array)):
     h.update(np.asarray(leaf).tobytes())
@@ -171,20 +199,22 @@ print(json.dumps({"stored": sum(p.stored for p in programs), "loaded": sum(p.loa
 
 
 def test_a_new_process_trains_from_the_stored_programs_to_the_same_weights(tmp_path):
-    """Two processes (different hash seeds) train the same small run with one cache folder: the
-    first compiles and stores the trainer's programs, the second loads every one of them and ends
-    at bit-identical weights."""
+    """Two processes (different hash seeds) train the same small run (Adam, then an L-BFGS polish,
+    whose stored program takes its state by donation) with one cache folder: the first compiles
+    and stores the trainer's programs, the second loads every one of them, and both end at the
+    weights of a third process that runs the plain jitted programs (no store, nothing donated)."""
     runs = []
-    for seed in ("1", "2"):
-        env = {**os.environ, "PYTHONHASHSEED": seed}
+    for seed, store in (("1", "on"), ("2", "on"), ("3", "off")):
+        env = {**os.environ, "PYTHONHASHSEED": seed, executables.STORE_ENV: store}
         done = subprocess.run(
             [sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, env=env
         )
         assert done.returncode == 0, done.stderr[-2000:]
         runs.append(json.loads(done.stdout.splitlines()[-1]))
-    first, second = runs
-    assert first["stored"] >= 2 and first["loaded"] == 0  # the Adam step and the validation
+    first, second, plain = runs
+    assert first["stored"] >= 3 and first["loaded"] == 0  # the Adam chunk, validation, L-BFGS
     assert second == {"stored": 0, "loaded": first["stored"], "weights": first["weights"]}
+    assert plain == {"stored": 0, "loaded": 0, "weights": first["weights"]}
     assert len(list(Path(tmp_path, executables.FOLDER).iterdir())) == first["stored"]
 
 
