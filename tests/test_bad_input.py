@@ -90,6 +90,12 @@ def ws(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "extra.csv": csv("traj_id,t,x,y,z", [[*r, "0"] for r in rows]),
         "halfvel.csv": csv("traj_id,t,x,y,vx", [[*r, "0"] for r in rows]),
         "text.csv": csv("traj_id,t,x,y", edit(7, 2, "two")),
+        "when.csv": csv("traj_id,t,x,y", edit(5, 1, "yesterday")),
+        "twice.csv": csv("traj_id, t ,x,y,t", [[*r, r[1]] for r in rows]),
+        "zones.csv": csv(
+            "traj_id,t,x,y", [["1", f"2026-03-01T10:00:0{k}{'Z' * (k != 1)}", "0", "0"] for k in range(3)]
+        ),
+        "baddate.csv": csv("traj_id,t,x,y", [["1", d, "0", "0"] for d in ("2026-03-01 10:00", "soon")]),
         "inf.csv": csv("traj_id,t,x,y", edit(12, 2, "inf")),
         "dup.csv": csv("traj_id,t,x,y", edit(7, 1, "0.1")),
         "short.csv": csv("traj_id,t,x,y", [*rows, ["9", "0", "0", "0"], ["9", "1", "1", "1"]]),
@@ -202,6 +208,19 @@ CASES = [
         "column 'vy' is missing: give vx and vy, or neither",
     ),
     (["import", "{ws}/text.csv", "-o", "{ws}/i.h5", *B], "column 'x', row 7: 'two' is not a number"),
+    (
+        ["import", "{ws}/when.csv", "-o", "{ws}/i.h5", *B],
+        "column 't', row 5: 'yesterday' is not a number of seconds or an ISO-8601 date-time",
+    ),
+    (["import", "{ws}/twice.csv", "-o", "{ws}/i.h5", *B], "column(s) t appear more than once"),
+    (
+        ["import", "{ws}/zones.csv", "-o", "{ws}/i.h5", *B],
+        "column 't': row 1 has a time zone and row 2 has none",
+    ),
+    (
+        ["import", "{ws}/baddate.csv", "-o", "{ws}/i.h5", *B],
+        "column 't', row 2: 'soon' is not an ISO-8601 date-time",
+    ),
     (["import", "{ws}/inf.csv", "-o", "{ws}/i.h5", *B], "column 'x', trajectory '2', row 12: infinite value"),
     (
         ["import", "{ws}/dup.csv", "-o", "{ws}/i.h5", *B],

@@ -447,6 +447,69 @@ def test_read_table_groups_shuffled_rows_by_trajectory_in_time_order(imported) -
         assert tr.vel is None and tr.force.shape == (rows.sum(), 2)
 
 
+def _same_table(a, b) -> None:
+    assert [tr.traj_id for tr in a.trajectories] == [tr.traj_id for tr in b.trajectories]
+    assert (a.rows, a.dropped) == (b.rows, b.dropped)
+    for p, q in zip(a.trajectories, b.trajectories, strict=True):
+        for field in ("t", "pos", "vel", "force"):
+            x, y = getattr(p, field), getattr(q, field)
+            assert (x is None) == (y is None), field
+            if x is not None:
+                np.testing.assert_array_equal(x, y, err_msg=f"{p.traj_id}/{field}")
+
+
+def test_semicolons_tabs_and_padded_header_names_read_as_the_plain_csv(imported, tmp_path) -> None:
+    folder, _ = imported
+    plain = read_table(folder / "track.csv")
+    header, *body = (folder / "track.csv").read_text().splitlines(keepends=True)
+    for sep, name in ((";", "semi.csv"), ("\t", "tabs.csv")):
+        names = [f" {n.strip(chr(34))} " for n in header.strip().split(",")]  # unquoted, padded
+        (tmp_path / name).write_text(
+            sep.join(names) + "\n" + "".join(line.replace(",", sep) for line in body)
+        )
+        _same_table(read_table(tmp_path / name), plain)
+    assert plain.time_origin is None
+
+
+def test_iso_times_read_as_seconds_after_the_earliest(imported, tmp_path, capsys) -> None:
+    folder, table = imported
+    plain = read_table(folder / "track.csv")
+    origin = np.datetime64("2026-03-01T10:00:00", "ns")
+    header, *body = (folder / "track.csv").read_text().splitlines(keepends=True)
+    column = [n.strip('"') for n in header.strip().split(",")].index("t")
+    t0 = np.nanmin(table["t"])  # the table's earliest time: 0 s after the origin
+
+    def stamped(zone: str) -> str:
+        lines = []
+        for line in body:
+            cells = line.rstrip("\n").split(",")
+            seconds = float(cells[column])
+            ns = np.timedelta64(round((seconds - t0) * 1e9), "ns")
+            cells[column] = f"{np.datetime_as_string(origin + ns, unit='ns')}{zone}"
+            lines.append(",".join(cells) + "\n")
+        return header + "".join(lines)
+
+    for zone in ("", "Z"):
+        path = tmp_path / f"stamped{zone}.csv"
+        path.write_text(stamped(zone))
+        read = read_table(path)
+        assert read.time_origin == "2026-03-01T10:00:00" + zone
+        assert (read.rows, read.dropped) == (plain.rows, plain.dropped)
+        for p, q in zip(read.trajectories, plain.trajectories, strict=True):
+            np.testing.assert_allclose(p.t, q.t - t0, rtol=0, atol=1e-9)  # to the nanosecond written
+            np.testing.assert_array_equal(p.pos, q.pos)
+    # through the command: the record keeps the origin and info says it
+    with pytest.raises(SystemExit) as info:
+        main(["import", str(path), "-o", str(tmp_path / "s.h5"), "--mass", "10", "--area", "0.1", "-q"])
+    assert info.value.code == 0
+    assert read_dataset(tmp_path / "s.h5").extra["import"]["time_origin"] == "2026-03-01T10:00:00Z"
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as info:
+        main(["info", str(tmp_path / "s.h5")])
+    assert info.value.code == 0
+    assert "times read as seconds after 2026-03-01T10:00:00Z" in capsys.readouterr().out
+
+
 def test_windows_can_skip_each_trajectorys_first_samples_and_tile_it(fine, rng) -> None:
     """``skip``: no window starts before that sample of its trajectory (where a smoother's velocity
     sees one side only), and ``start`` names the sample each window starts at; the quasi-Newton

@@ -210,7 +210,8 @@ def import_table(
     table: Annotated[
         Path,
         typer.Argument(
-            help="Table of samples (.csv or .parquet): traj_id, t, x, y[, vx, vy][, Fx, Fy] in SI units."
+            help="Table of samples (.csv or .parquet): traj_id, t, x, y[, vx, vy][, Fx, Fy] in SI "
+            "units; t in seconds or as ISO-8601 date-times; a CSV separated by commas, semicolons or tabs."
         ),
     ],
     output: Annotated[Path, typer.Option("--output", "-o", help="HDF5 data set to write.")],
@@ -1237,7 +1238,8 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
             f"imported from {record['source'] or '?'}: {record['rows']} rows, {record['dropped_rows']} "
             f"dropped (missing values), {record['trajectories']} trajectories; sample step median "
             f"{_fmt(record['step_median'])} s (range {_fmt(record['step_range'][0])} – "
-            f"{_fmt(record['step_range'][1])} s)",
+            f"{_fmt(record['step_range'][1])} s)"
+            + (f"; times read as seconds after {record['time_origin']}" if record.get("time_origin") else ""),
             soft_wrap=True,
             highlight=False,
         )

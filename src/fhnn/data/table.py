@@ -4,11 +4,17 @@ The table has one row per sample, in any order, with the columns (SI units throu
 
 ======================  ======================================================================
 ``traj_id``             which trajectory the row belongs to (any integers or strings)
-``t``                   sample time [s]; each trajectory has its own, irregular times
+``t``                   sample time [s], or ISO-8601 date-times (``2026-03-01T10:00:00.25``, all
+                        with a zone such as ``Z`` or ``+02:00``, or all without), read as seconds
+                        after the table's earliest one (kept as ``time_origin`` in the import
+                        record); each trajectory has its own, irregular times
 ``x``, ``y``            position [m]
 ``vx``, ``vy``          velocity [m/s] — optional, both or neither; estimated where absent
 ``Fx``, ``Fy``          known external force [N] — optional, both or neither; zero where absent
 ======================  ======================================================================
+
+A CSV file's columns may be separated by commas, semicolons or tabs (whichever its header line
+uses most), and spaces around the header's names are ignored.
 
 Rows with a missing value (an empty cell or NaN) in any column present are gaps: they are dropped
 and counted. Any other problem — a missing or unknown column, a non-numeric or infinite value, two
@@ -69,6 +75,25 @@ class Table:
     trajectories: list[Trajectory]
     rows: int
     dropped: int
+    time_origin: str | None = None
+
+
+#: Delimiters a CSV file's header line is checked for (the most frequent one is used).
+DELIMITERS = (",", ";", "\t")
+
+
+def _csv_header(path: Path) -> tuple[str, list[str]]:
+    """The delimiter a CSV file's header line uses most (a comma where it has none) and the
+    header's names as written."""
+    import csv
+
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace", newline="") as f:
+            line = f.readline(1 << 16)
+    except OSError:  # reported by the reader
+        return ",", []
+    delimiter = max(DELIMITERS, key=line.count) if any(d in line for d in DELIMITERS) else ","
+    return delimiter, next(csv.reader([line], delimiter=delimiter), [])
 
 
 def _read_arrow(path: Path) -> Any:
@@ -79,15 +104,79 @@ def _read_arrow(path: Path) -> Any:
     suffix = path.suffix.lower()
     try:
         if suffix == ".parquet":
-            return pq.read_table(path)
-        if suffix == ".csv":
+            table = pq.read_table(path)
+        elif suffix == ".csv":
+            delimiter, header = _csv_header(path)
             # traj_id as text (ids like 007 stay themselves); every other column inferred
-            options = pacsv.ConvertOptions(column_types={"traj_id": pa.string()}, strings_can_be_null=False)
-            return pacsv.read_csv(path, convert_options=options)
+            traj_id = next((name for name in header if name.strip() == "traj_id"), "traj_id")
+            options = pacsv.ConvertOptions(column_types={traj_id: pa.string()}, strings_can_be_null=False)
+            table = pacsv.read_csv(
+                path, parse_options=pacsv.ParseOptions(delimiter=delimiter), convert_options=options
+            )
+        else:
+            raise DataFormatError(f"{path}: unknown table type {path.suffix!r}; give a .csv or .parquet file")
     except (pa.ArrowInvalid, OSError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DataFormatError(f"{path}: not a readable table ({first})") from None
-    raise DataFormatError(f"{path}: unknown table type {path.suffix!r}; give a .csv or .parquet file")
+    names = [str(name).strip() for name in table.column_names]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise DataFormatError(f"{path}: column(s) {', '.join(twice)} appear more than once")
+    return table.rename_columns(names)
+
+
+#: A value that starts like an ISO-8601 date, and one that ends with a zone ("Z", "+02:00").
+_DATE = r"^\s*\d{4}-\d{2}-\d{2}"
+_ZONE = r"(Z|[+-]\d{2}:?\d{2})\s*$"
+
+
+def _times(path: Path, column: Any) -> tuple[np.ndarray, str | None]:
+    """The time column in seconds (nulls as NaN) and, where it holds ISO-8601 date-times, the
+    earliest of them (the seconds count from it) as text; numbers are returned as they are. A
+    column of date-times with a value that is not one, or with zones on some rows only, is an
+    error naming the row."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    if pa.types.is_timestamp(column.type):
+        stamps = column
+    elif (pa.types.is_string(column.type) or pa.types.is_large_string(column.type)) and pc.any(
+        pc.match_substring_regex(column, _DATE)
+    ).as_py():
+        text = pc.if_else(pc.equal(pc.utf8_trim_whitespace(column), ""), pa.scalar(None, column.type), column)
+        text = text.combine_chunks() if hasattr(text, "combine_chunks") else text
+        zoned = np.asarray(pc.match_substring_regex(text, _ZONE).to_numpy(zero_copy_only=False), dtype=object)
+        with_zone, without = np.flatnonzero(zoned == True), np.flatnonzero(zoned == False)  # noqa: E712 (nulls)
+        if with_zone.size and without.size:
+            raise DataFormatError(
+                f"{path}: column 't': row {with_zone[0] + 1} has a time zone and row {without[0] + 1} has "
+                "none; give every date-time with a zone or every one without"
+            )
+        kind = pa.timestamp("ns", tz="UTC") if with_zone.size else pa.timestamp("ns")
+        try:
+            stamps = pc.cast(text, kind)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            lo, hi = 0, len(text)  # a value that does not parse lies in [lo, hi): halve it
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                try:
+                    pc.cast(text.slice(lo, mid - lo), kind)
+                    lo = mid
+                except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+                    hi = mid
+            raise DataFormatError(
+                f"{path}: column 't', row {lo + 1}: {text[lo].as_py()!r} is not an ISO-8601 date-time"
+            ) from None
+    else:
+        return _numeric(path, "t", column), None
+    ns = pc.cast(pc.cast(stamps, pa.timestamp("ns", tz=getattr(stamps.type, "tz", None))), pa.int64())
+    valid = ~np.asarray(pc.is_null(ns).to_numpy(zero_copy_only=False), dtype=bool)
+    values = np.asarray(pc.fill_null(ns, 0).to_numpy(zero_copy_only=False), dtype=np.int64)
+    origin = int(values[valid].min()) if valid.any() else 0
+    seconds = np.where(valid, (values - origin) / 1e9, np.nan)
+    zone = "Z" if getattr(stamps.type, "tz", None) else ""
+    unit = next(u for u, q in (("s", 10**9), ("ms", 10**6), ("us", 10**3), ("ns", 1)) if origin % q == 0)
+    return seconds, f"{np.datetime_as_string(np.datetime64(origin, 'ns'), unit=unit)}{zone}"
 
 
 def _numeric(path: Path, name: str, column: Any) -> np.ndarray:
@@ -103,7 +192,8 @@ def _numeric(path: Path, name: str, column: Any) -> np.ndarray:
         try:
             float(value)
         except (TypeError, ValueError):
-            raise DataFormatError(f"{path}: column {name!r}, row {row}: {value!r} is not a number") from None
+            what = "a number of seconds or an ISO-8601 date-time" if name == "t" else "a number"
+            raise DataFormatError(f"{path}: column {name!r}, row {row}: {value!r} is not {what}") from None
     values = [np.nan if v in (None, "") else float(v) for v in column.to_pylist()]
     return np.asarray(values, dtype=float)
 
@@ -180,7 +270,8 @@ def read_table(path: str | os.PathLike[str]) -> Table:
     if rows == 0:
         raise DataFormatError(f"{path}: the table has no rows")
     ids, rank = _trajectory_ids(arrow.column("traj_id"))
-    values = {c: _numeric(path, c, arrow.column(c)) for c in names if c != "traj_id"}
+    times, origin = _times(path, arrow.column("t"))
+    values = {c: times if c == "t" else _numeric(path, c, arrow.column(c)) for c in names if c != "traj_id"}
     _reject_infinite(path, values, ids)
     gap = np.zeros(rows, dtype=bool)
     for column in values.values():
@@ -206,7 +297,7 @@ def read_table(path: str | os.PathLike[str]) -> Table:
             )
         pos, vel, force = (_pair(values, a_, b_, rows_of) for a_, b_ in (("x", "y"), *OPTIONAL_PAIRS))
         trajectories.append(Trajectory(traj_id, t, pos, vel, force))
-    return Table(trajectories=trajectories, rows=rows, dropped=int(gap.sum()))
+    return Table(trajectories=trajectories, rows=rows, dropped=int(gap.sum()), time_origin=origin)
 
 
 FORCING_COLUMNS = ("t", "Fx", "Fy")
@@ -407,6 +498,7 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         "dropped_rows": table.dropped,
         "trajectories": len(trajs),
         "time_offset": t0,
+        "time_origin": table.time_origin,
         "position_noise": pos_noise,
         "velocity_noise": vel_noise,
         "velocity_error": vel_error,
