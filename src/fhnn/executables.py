@@ -33,6 +33,7 @@ from __future__ import annotations
 import hashlib
 import inspect
 import io
+import itertools
 import logging
 import os
 import pickle
@@ -248,7 +249,7 @@ class StoredProgram:
         if any(isinstance(x, jax.core.Tracer) for x in arrays):  # called inside a traced program
             return self.fn(*args)
         avals = tuple((x.shape, x.dtype, getattr(x, "weak_type", False)) for x in arrays)
-        signature = (self.fn, tree, mask, others, avals, _donated(args, self.donate))
+        signature = (self.fn, tree, mask, others, avals, self.donate)
         if self._last is not None and self._last[0] == signature:
             program = self._last[1]
         else:
@@ -277,21 +278,25 @@ class StoredProgram:
             return None
         key = hashlib.sha256(_FORMAT + _environment() + buffer.getvalue()).hexdigest()[:32]
         path = folder / f"{self.name.rsplit('.', 1)[-1]}-{key}.bin"
-        program = self._load(path, signature, arrays, pickler.seen)
+        donated = _donated(signature[1], signature[2], self.donate)
+        program = self._load(path, arrays, donated, pickler.seen)
         if program is None:
-            program = self._compile(path, signature, arrays, pickler.seen)
+            program = self._compile(path, signature, arrays, donated, pickler.seen)
         return program
 
-    def _load(self, path: Path, signature: tuple, arrays: list[Any], seen: list[Any]) -> _Program | None:
-        """The program stored at ``path``, compiled over ``arrays``; ``None`` (and the file
-        deleted) when it is missing, unreadable or does not compile for them."""
+    def _load(
+        self, path: Path, arrays: list[Any], donated: tuple[int, ...], seen: list[Any]
+    ) -> _Program | None:
+        """The program stored at ``path``, compiled over ``arrays`` (those at ``donated``
+        donated); ``None`` (and the file deleted) when it is missing, unreadable or does not
+        compile for them."""
         if not path.is_file():
             return None
         try:
             module, out_part = pickle.loads(path.read_bytes())
             exported = jax_export.deserialize(bytearray(module))
             out_tree, out_mask, out_others = _OutUnpickler(io.BytesIO(out_part), seen).load()
-            program = _Program(_compiled(exported, arrays, signature[5]), out_tree, out_mask, out_others)
+            program = _Program(_compiled(exported, arrays, donated), out_tree, out_mask, out_others)
         except Exception as err:  # a stale or damaged file only costs a compilation
             logger.warning("discarding stored executable %s: %s", path.name, err)
             path.unlink(missing_ok=True)
@@ -299,11 +304,13 @@ class StoredProgram:
         self.loaded += 1
         return program
 
-    def _compile(self, path: Path, signature: tuple, arrays: list[Any], seen: list[Any]) -> _Program | None:
-        """Export the program of ``signature``, write it to ``path`` and compile it; ``None`` when
-        it cannot be exported or its output cannot be written (the function is then called as it
-        is)."""
-        _, tree, mask, others, _, donated = signature
+    def _compile(
+        self, path: Path, signature: tuple, arrays: list[Any], donated: tuple[int, ...], seen: list[Any]
+    ) -> _Program | None:
+        """Export the program of ``signature``, write it to ``path`` and compile it (the arrays at
+        ``donated`` donated); ``None`` when it cannot be exported or its output cannot be written
+        (the function is then called as it is)."""
+        _, tree, mask, others, _, _ = signature
         made: list[Any] = []
 
         def flat(*inputs: Any) -> list[Any]:
@@ -333,15 +340,16 @@ class StoredProgram:
         return program
 
 
-def _donated(args: tuple[Any, ...], donate: tuple[int, ...]) -> tuple[int, ...]:
-    """Positions, among the array leaves of ``args`` in :func:`_split`'s order, of the arrays of
-    the arguments ``donate`` names."""
-    out, at = [], 0
-    for i, arg in enumerate(args):
-        n = sum(map(eqx.is_array, jax.tree.leaves(arg)))
+def _donated(tree: Any, mask: tuple[bool, ...], donate: tuple[int, ...]) -> tuple[int, ...]:
+    """Positions, among the arrays :func:`_split` takes from the arguments (structure ``tree``,
+    array leaves ``mask``), of the arrays of the arguments ``donate`` names. Worked out once per
+    signature, not per call."""
+    arrays_before = [0, *itertools.accumulate(mask)]  # arrays among the leaves before each leaf
+    out, leaf = [], 0
+    for i, arg in enumerate(tree.children()):
         if i in donate:
-            out.extend(range(at, at + n))
-        at += n
+            out.extend(range(arrays_before[leaf], arrays_before[leaf + arg.num_leaves]))
+        leaf += arg.num_leaves
     return tuple(out)
 
 
