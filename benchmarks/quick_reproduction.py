@@ -12,9 +12,13 @@ reproduction of the same shapes gets), and prints:
   test ``tests/test_reproduce.py::test_quick_reproduction_runs_every_table_and_renders``, which
   this script stands in for in the default test run).
 
+With ``--seeds N`` it times the reproduction's seed axis instead: ``--quick --seeds N`` cold, with a
+job per seed and with each cell's seeds as one task (``--set seeds_together=true``), their ratio,
+and how far the two runs' validation losses part.
+
 Usage::
 
-    python benchmarks/quick_reproduction.py [--workers N] [--out DIR]
+    python benchmarks/quick_reproduction.py [--workers N] [--out DIR] [--seeds N]
 """
 
 from __future__ import annotations
@@ -37,9 +41,9 @@ TABLES = ("T1", "T2", "T3", "T4", "T5", "T6")
 FIGURES = ("flow", "rollouts", "errors_vs_horizon", "ablations")
 
 
-def run_quick(out: Path, cache: Path, workers: int | None) -> float:
-    """Wall seconds of ``fhnn reproduce --quick -o out`` with the compilation cache ``cache``."""
-    cmd = [sys.executable, "-m", "fhnn.cli.app", "reproduce", "--quick", "-o", str(out), "-q"]
+def run_quick(out: Path, cache: Path, workers: int | None, *extra: str) -> float:
+    """Wall seconds of ``fhnn reproduce --quick -o out [extra]`` with the compilation cache ``cache``."""
+    cmd = [sys.executable, "-m", "fhnn.cli.app", "reproduce", "--quick", "-o", str(out), "-q", *extra]
     if workers is not None:
         cmd += ["--workers", str(workers)]
     env = {**os.environ, "FHNN_JAX_CACHE": str(cache)}
@@ -80,13 +84,55 @@ def job_seconds(out: Path) -> dict[str, float]:
     }
 
 
+def seed_axis(base: Path, workers: int | None, seeds: int) -> list[str]:
+    """Time ``--quick --seeds seeds`` cold with a job per seed and with each cell's seeds together;
+    print both, and the largest relative difference of a job's best validation loss between them.
+    Returns what is missing from either report."""
+    times = {}
+    for together in (False, True):
+        name = "together" if together else "apart"
+        shutil.rmtree(base / name, ignore_errors=True)
+        shutil.rmtree(base / f"jax-cache-{name}", ignore_errors=True)
+        extra = ["--seeds", str(seeds), "--set", f"seeds_together={str(together).lower()}"]
+        times[name] = run_quick(base / name, base / f"jax-cache-{name}", workers, *extra)
+    print(f"fhnn reproduce --quick --seeds {seeds}, cold compilation cache")
+    print(f"  a job per seed            {times['apart']:6.1f} s")
+    print(
+        f"  each cell's seeds as one  {times['together']:6.1f} s   (seeds_together) throughput ratio "
+        f"{times['apart'] / times['together']:.2f}"
+    )
+    best = {}
+    for name in ("apart", "together"):
+        for path in (base / name / "jobs").glob("*/result.json"):
+            r = json.loads(path.read_text())
+            key = (
+                r["spec"]["data"]["scenario"],
+                r["spec"]["model"],
+                r["spec"]["ablation"],
+                r["spec"]["seed"],
+            )
+            best.setdefault(key, {})[name] = r["best_val"]
+    pairs = [v for v in best.values() if len(v) == 2]
+    gap = max(abs(v["together"] - v["apart"]) / abs(v["apart"]) for v in pairs)
+    print(f"  {len(pairs)} jobs in both: best validation loss differs by at most {gap:.1e} relative")
+    return check_report(base / "apart") + check_report(base / "together")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--workers", type=int, default=None, help="as for fhnn reproduce (default: one per core)")
     p.add_argument("--out", type=Path, default=None, help="keep the two reproductions here")
+    p.add_argument("--seeds", type=int, default=None, help="time the seed axis: N seeds apart and together")
     args = p.parse_args()
     base = Path(tempfile.mkdtemp(prefix="fhnn-quick-")) if args.out is None else args.out
     base.mkdir(parents=True, exist_ok=True)
+    if args.seeds is not None:
+        print(f"fhnn {fhnn.__version__}, {os.cpu_count()} CPUs, workers {args.workers or 'one per core'}")
+        missing = seed_axis(base, args.workers, args.seeds)
+        print("  report: every table and figure present" if not missing else f"  report: MISSING {missing}")
+        if args.out is None:
+            shutil.rmtree(base, ignore_errors=True)
+        sys.exit(1 if missing else 0)
     cache = base / "jax-cache"
     for sub in ("cold", "warm", "jax-cache"):
         shutil.rmtree(base / sub, ignore_errors=True)

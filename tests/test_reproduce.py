@@ -80,6 +80,15 @@ def test_job_ids_change_with_what_determines_the_result_only() -> None:
     assert not {j.id for j in a} & {j.id for j in fast}
     assert not {d.id for d in build_grid(ReproduceConfig(seeds=1))[0]} & {d.id for d in data_fast}
     assert ReproduceConfig.quick().fast_compile and not ReproduceConfig().fast_compile
+    # seeds trained together differ in their last bits: other jobs, on the same data sets
+    data_together, together = build_grid(ReproduceConfig(seeds=2, models=("fhnn",), seeds_together=True))
+    assert all(j.together and j.spec["together"] for j in together)
+    assert not {j.id for j in d} & {j.id for j in together}
+    assert [x.id for x in data_together] == [
+        x.id for x in build_grid(ReproduceConfig(seeds=2, models=("fhnn",)))[0]
+    ]
+    # one seed has no cell to share: the setting changes nothing
+    assert [j.id for j in build_grid(ReproduceConfig(seeds=1, seeds_together=True))[1]] == [j.id for j in a]
 
 
 def test_a_worker_adds_its_xla_flags_before_compiling(monkeypatch) -> None:
@@ -344,6 +353,40 @@ def _metrics(out: Path) -> dict[str, dict]:
         p.parent.name: json.loads(p.read_text())["spec_metrics"]
         for p in sorted((out / "jobs").glob("*/result.json"))
     }
+
+
+def test_seeds_together_train_each_cell_as_one_task_with_the_numbers_of_separate_jobs(tmp_path: Path) -> None:
+    """``seeds_together``: a cell's two seeds are one task (one progress report naming both), each
+    job still its own folder, with the numbers of the jobs trained apart but for the last bits of the
+    vmapped sums; a member lost is retrained alone, and nothing else."""
+    settings = {**TWO_JOBS, "seeds": 2, "models": ("fhnn",)}
+    apart = reproduce(ReproduceConfig.from_dict(settings), tmp_path / "apart", workers=1)
+    reports: list[str] = []
+    config = ReproduceConfig.from_dict({**settings, "seeds_together": True})
+    together = reproduce(config, tmp_path / "together", workers=1, progress=lambda *a: reports.append(a[3]))
+    assert apart.jobs_run == together.jobs_run == 2
+    assert "steady_vortex__fhnn__s0 + steady_vortex__fhnn__s1" in reports
+    a = {r["spec"]["seed"]: r for r in map(json.loads, _results(tmp_path / "apart"))}
+    b = {r["spec"]["seed"]: r for r in map(json.loads, _results(tmp_path / "together"))}
+    assert sorted(a) == sorted(b) == [0, 1]
+    for seed in (0, 1):
+        assert b[seed]["trained_with"] == 2 and "trained_with" not in a[seed]
+        assert b[seed]["spec"]["together"] and b[seed]["steps"] == a[seed]["steps"] == 30
+        assert b[seed]["best_val"] == pytest.approx(a[seed]["best_val"], rel=1e-10)
+        assert b[seed]["spec_metrics"]["5"]["rmse_pos"] == pytest.approx(
+            a[seed]["spec_metrics"]["5"]["rmse_pos"], rel=1e-10
+        )
+    assert a[0]["best_val"] != a[1]["best_val"]  # the seeds are different models
+    lost = next(p for p in (tmp_path / "together" / "jobs").iterdir() if "__s1-" in p.name)
+    shutil.rmtree(lost)
+    again = reproduce(config, tmp_path / "together", workers=1)
+    assert again.jobs_run == 1
+    redone = json.loads((lost / "result.json").read_text())
+    assert "trained_with" not in redone and redone["best_val"] == pytest.approx(b[1]["best_val"], rel=1e-10)
+
+
+def _results(out: Path) -> list[str]:
+    return [p.read_text() for p in sorted((out / "jobs").glob("*/result.json"))]
 
 
 @pytest.mark.filterwarnings("ignore:os.fork")

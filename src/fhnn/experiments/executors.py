@@ -70,9 +70,9 @@ class Task:
 
 
 def _functions() -> dict[str, Callable[..., Any]]:
-    from fhnn.experiments.jobs import run_data_job, run_model_job
+    from fhnn.experiments.jobs import run_data_job, run_model_job, run_model_jobs
 
-    return {"data": run_data_job, "model": run_model_job}
+    return {"data": run_data_job, "model": run_model_job, "models": run_model_jobs}
 
 
 def execute(function: str, cache_dir: str | None, *args: Any) -> Any:

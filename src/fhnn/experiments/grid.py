@@ -170,6 +170,16 @@ class ReproduceConfig(Config):
             one (XLA reads its flags when a process first compiles). Results differ from the usual
             compilation's in their last bits (~1e-13 relative), so the setting is part of every
             job's key.
+        seeds_together: train each table cell's seeds (one model on one data set) as one task —
+            the members of one ensemble, their Adam phases as one ``vmap``-ed program
+            (:func:`fhnn.training.ensemble.train_members`) — instead of a job per seed. It pays
+            where one program can fill the machine: on an H100, three seeds' Adam steps as one
+            program had 3.78× (the default plan's step) and 2.81× (every loss term) the throughput
+            of three in sequence (``docs/benchmarks/training_speed_gpu.txt``). On the 2-core CPU it
+            does not (0.74× and 0.68×; ``fhnn train --seeds 3`` end to end 0.98×,
+            ``docs/benchmarks/training_speed.txt``), while a job per seed keeps both cores busy,
+            so it is off by default. The vmapped sums change the last bits, so the setting is part
+            of every grouped job's key.
     """
 
     config_name = "reproduce"
@@ -184,6 +194,7 @@ class ReproduceConfig(Config):
     train: TrainConfig = dataclasses.field(default_factory=reproduction_train)
     model: ModelOptions = dataclasses.field(default_factory=reproduction_models)  # type: ignore[valid-type]
     fast_compile: bool = False
+    seeds_together: bool = False
 
     def validate(self) -> None:
         check_positive(self, "seeds")
@@ -288,13 +299,20 @@ class DataJob:
 
 @dataclass(frozen=True)
 class ModelJob:
-    """Train ``run`` (a model kind, FHNN ``ablation``, with ``seed``) on ``data``, then evaluate it."""
+    """Train ``run`` (a model kind, FHNN ``ablation``, with ``seed``) on ``data``, then evaluate it;
+    ``together``: as a member of its cell's ensemble (:attr:`ReproduceConfig.seeds_together`)."""
 
     data: DataJob
     model: str
     ablation: str
     seed: int
     run: RunConfig = field(hash=False)
+    together: bool = False
+
+    @property
+    def cell(self) -> tuple[str, str, str]:
+        """The table cell the job is a seed of: its data set, model and ablation."""
+        return (self.data.id, self.model, self.ablation)
 
     @property
     def variant(self) -> str:
@@ -318,6 +336,7 @@ class ModelJob:
             "model_config": self.run.model.to_dict(),  # type: ignore[union-attr]
             "train": self.run.train.to_dict(),
             "horizons": list(HORIZONS),
+            **({"together": True} if self.together else {}),
         }
 
     @property
@@ -349,7 +368,7 @@ def build_grid(config: ReproduceConfig) -> tuple[list[DataJob], list[ModelJob]]:
             model_config = model_config.replace(ablation=ablation)
         for seed in range(config.seeds):
             run = RunConfig(kind=model, model=model_config, train=config.train.replace(seed=seed))
-            job = ModelJob(d, model, ablation, seed, run)
+            job = ModelJob(d, model, ablation, seed, run, config.seeds_together and config.seeds > 1)
             jobs.setdefault(job.id, job)
 
     for sc in config.main_scenarios:

@@ -196,7 +196,13 @@ def build_report(
 def _intro(config: ReproduceConfig, timings: dict[str, Any]) -> str:
     return (
         f"fhnn {__version__}: the paper's tables (SPEC §6) on our data sets, "
-        f"{config.seeds} seed(s) per model, "
+        f"{config.seeds} seed(s) per model"
+        + (
+            " (trained together, as one ensemble per cell)"
+            if config.seeds_together and config.seeds > 1
+            else ""
+        )
+        + ", "
         f"the same training for every gradient-trained model ({_plan_text(config.train)})"
         + f". {timings['jobs']} training jobs, {timings['job_seconds_total'] / 60:.1f} CPU-minutes of jobs; "
         f"this invocation took {timings['wall_seconds_this_run'] / 60:.1f} min (cached jobs are not re-run)."

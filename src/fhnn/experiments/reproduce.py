@@ -5,7 +5,8 @@ Three phases, each skipping what is already done:
 1. data jobs → ``OUT/data/<label>-<hash>.h5``;
 2. model jobs → ``OUT/jobs/<label>-<hash>/`` (``result.json``, ``rollouts.npz``, ``run/``), written
    into a temporary folder and renamed, so a folder exists only when its job finished; a data
-   set's model jobs are queued as soon as that data set exists, so phases 1 and 2 overlap;
+   set's model jobs are queued as soon as that data set exists, so phases 1 and 2 overlap (with
+   ``seeds_together`` the unfinished seeds of a table cell are one task, each still its own folder);
 3. the report (tables, figures, ``report.md``, ``index.html``), rebuilt only when the set of
    results or the configuration changed (``OUT/report.stamp``).
 
@@ -137,9 +138,20 @@ def _reproduce(
             data_bytes[d.id] = path.read_bytes()
         return data_bytes[d.id]
 
+    groups: dict[str, list[ModelJob]] = {}  # a task of several jobs (seeds_together): its jobs
+
     def model_tasks(d: DataJob) -> list[Task]:
         waiting = [j for j in todo_jobs if j.data.id == d.id]
-        return [Task(j.id, "model", (j.spec, data_arg(d), d.filename)) for j in waiting] if waiting else []
+        solo = [Task(j.id, "model", (j.spec, data_arg(d), d.filename)) for j in waiting if not j.together]
+        cells: dict[tuple[str, str, str], list[ModelJob]] = {}
+        for j in waiting:
+            if j.together:
+                cells.setdefault(j.cell, []).append(j)
+        for members in cells.values():
+            name = "+".join(j.id for j in members)
+            groups[name] = members
+            solo.append(Task(name, "models", ([j.spec for j in members], data_arg(d), d.filename)))
+        return solo
 
     def on_done(task: Task, output: object) -> list[Task]:
         nonlocal done
@@ -149,6 +161,14 @@ def _reproduce(
                 write_atomic(out / "data" / by_id[task.name].filename, output)
             report("jobs", done, total, by_id[task.name].label)
             return model_tasks(by_id[task.name])
+        if task.function == "models":
+            assert isinstance(output, list)
+            members = groups[task.name]
+            for job, files in zip(members, output, strict=True):
+                write_folder_atomic(out / "jobs" / job.id, files)
+            done += len(members) - 1
+            report("jobs", done, total, " + ".join(j.label for j in members))
+            return []
         assert isinstance(output, dict)
         write_folder_atomic(out / "jobs" / task.name, output)
         report("jobs", done, total, jobs_by_id[task.name].label)

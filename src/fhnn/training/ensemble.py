@@ -10,11 +10,14 @@ another, their Adam phases together as one ``vmap``-ed program per step
 (:func:`~fhnn.training.trainer.run_together`), their L-BFGS polishes one after another. They have
 the same shapes and configuration, so the first member's compiled programs serve every other
 member, and each stays an ordinary run that can be resumed, inspected or evaluated on its own.
-On the 2-core CPU three members' Adam steps as one program have 1.80× the throughput of
-sequential ones for the default plan's step and 1.14× for the step with every loss term and the
-penalty (``benchmarks/training_speed.py``); the quasi-Newton phases, whose line searches differ
-from member to member, stay sequential — all of a default-plan run on ``solid_body_vortex``
-(its warm-up is kept, Adam skipped), about three quarters of one on ``steady_vortex``.
+Three members' Adam steps as one program have 3.78× the throughput of sequential ones for the
+default plan's step and 2.81× for the step with every loss term and the penalty on an H100 GPU,
+but 0.74× and 0.68× on the 2-core CPU, where Adam's chunks of steps per call already leave no
+dispatch to share and a step is arithmetic (``benchmarks/training_speed.py``;
+``docs/benchmarks/training_speed*.txt``: ``fhnn train --seeds 3`` end to end 0.98× on the CPU);
+the quasi-Newton phases, whose line searches differ from member to member, stay sequential — all
+of a default-plan run on ``solid_body_vortex`` (its warm-up is kept, Adam skipped), about three
+quarters of one on ``steady_vortex``.
 
 ``fhnn train --seeds N`` trains each member on its own bootstrap resample of the training
 trajectories (``train.bootstrap``; ``--set train.bootstrap=false`` trains all on the same data),
