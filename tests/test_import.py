@@ -821,4 +821,10 @@ def test_without_forcing_only_the_drag_to_inertia_ratios_are_determined() -> Non
     assert max(r["max_rel"] for r in rec["_ratios"].values()) < 1e-12
     assert list(rec["_ratios"]) == list(RATIO_NAMES)
     coef = np.array([[5.0, 10.0, 0.4, 3.0]])
-    np.testing.assert_allclose(drag_ratios(coef, 10.0), [[3.0 / 15, 3.0 / 20, 0.4 / 15, 0.4 / 20]])
+    body = {"M": 10.0, "rho": 1000.0, "A": 0.02}
+    drag = 0.5 * 1000.0 * 0.02 * 0.4 * 0.25 + 3.0  # ½ρA c_q σ + c_l at σ = 0.25 m/s
+    np.testing.assert_allclose(
+        drag_ratios(coef, np.array([0.25]), body),
+        [[3.0 / 15, 3.0 / 20, 0.4 / 15, 0.4 / 20, drag / 15, drag / 20]],
+        rtol=1e-15,
+    )

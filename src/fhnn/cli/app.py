@@ -911,7 +911,9 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
         stdout.print(
             "note: no known forcing in the data (no Fx, Fy, or all zero) — the added masses and drag "
             "coefficients above are NOT determined by the data (scaling inertia and drag together "
-            "changes nothing a neutrally buoyant body does); what is identifiable are the ratios:",
+            "changes nothing a neutrally buoyant body does); what is identifiable are the ratios, "
+            "drag/(M + m_a) most tightly (the relative velocity's relaxation rate [1/s] at each σ; its "
+            "split between c_q and c_l rests on the slowest relative speeds in the data):",
             soft_wrap=True,
         )
         ratios = Table(title="identifiable ratios over the covered (r, σ)", title_justify="left")
@@ -944,6 +946,7 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
     # the members agree on the ratios c/(M + m_a) far better than on the masses themselves
     mass_width = max(rows[n]["rel_width"] for n in ("m_ax", "m_ay"))
     ratio_width = max(rows[n]["rel_width"] for n in rows if "/" in n)
+    drag_width = max(rows[n]["rel_width"] for n in rows if n.startswith("drag/"))
     if as_json:
         out = {
             "members": len(models),
@@ -975,7 +978,8 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
         stdout.print(
             "note: no known forcing in the data — the added masses and drag coefficients are NOT "
             "determined by the data; only the ratios c/(M + m_a) are (the members' masses spread "
-            f"{mass_width:.1%}, their ratios {ratio_width:.1%}).",
+            f"{mass_width:.1%}, their ratios {ratio_width:.1%}; the total drag's, drag/(M + m_a), "
+            f"{drag_width:.1%}: the split between c_q and c_l rests on the slowest relative speeds).",
             soft_wrap=True,
         )
     bootstrap = all(r.train_config.bootstrap for r in runs)
@@ -1085,8 +1089,9 @@ def inspect(
         )
     if dataset.actuation == "none":
         stdout.print(
-            "note: trained without actuation — only the ratios c / (M + m_a) are identifiable; "
-            "the absolute masses and drag coefficients above are not measured quantities. The ratios: "
+            "note: trained without actuation — only the ratios c / (M + m_a) are identifiable, the "
+            "total drag's drag / (M + m_a) most tightly; the absolute masses and drag coefficients "
+            "above are not measured quantities. The ratios: "
             + ", ".join(
                 f"{name} {r['mean_rel']:.2%} mean / {r['max_rel']:.2%} max rel. error"
                 for name, r in coef["_ratios"].items()

@@ -54,16 +54,37 @@ SIGMA_BANDS = (0.0, 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 
 #: The drag-to-inertia ratios that unforced motion determines: with no known force the
 #: equations of motion fix only ``c / (M + m_a)`` (a common scale of inertia and drag leaves the
-#: motion unchanged when the body is neutrally buoyant, ``ρV = M``).
-RATIO_NAMES = ("c_l/(M+m_ax)", "c_l/(M+m_ay)", "c_q/(M+m_ax)", "c_q/(M+m_ay)")
+#: motion unchanged when the body is neutrally buoyant, ``ρV = M``). ``drag/(M+m_a)`` is the total
+#: drag coefficient's ``(½ρA c_q σ + c_l) / (M + m_a)`` [1/s], the rate at which the relative
+#: velocity relaxes at speed σ: what the motion itself shows, even where the data cannot split the
+#: drag between ``c_q`` and ``c_l`` (the split rests on how the drag behaves as σ → 0).
+RATIO_NAMES = (
+    "c_l/(M+m_ax)",
+    "c_l/(M+m_ay)",
+    "c_q/(M+m_ax)",
+    "c_q/(M+m_ay)",
+    "drag/(M+m_ax)",
+    "drag/(M+m_ay)",
+)
 
 
-def drag_ratios(coefficients: np.ndarray, mass: float) -> np.ndarray:
-    """:data:`RATIO_NAMES` [1/s, 1/s, 1/kg, 1/kg] from coefficients ``(P, 4)`` (``m_ax, m_ay, c_q,
-    c_l``) and the dry mass ``M`` [kg], shape ``(P, 4)``."""
+def drag_ratios(coefficients: np.ndarray, sigma: np.ndarray, body: dict[str, float]) -> np.ndarray:
+    """:data:`RATIO_NAMES` [1/s, 1/s, 1/kg, 1/kg, 1/s, 1/s] from coefficients ``(P, 4)`` (``m_ax,
+    m_ay, c_q, c_l``) at the relative speeds ``sigma`` ``(P,)`` [m/s], for the body constants
+    ``body`` (``M``, ``rho``, ``A``), shape ``(P, 6)``."""
     m_ax, m_ay, c_q, c_l = coefficients.T
+    drag = drag_terms(coefficients, sigma, body)[1]
+    inertia_x, inertia_y = body["M"] + m_ax, body["M"] + m_ay
     return np.stack(
-        [c_l / (mass + m_ax), c_l / (mass + m_ay), c_q / (mass + m_ax), c_q / (mass + m_ay)], axis=1
+        [
+            c_l / inertia_x,
+            c_l / inertia_y,
+            c_q / inertia_x,
+            c_q / inertia_y,
+            drag / inertia_x,
+            drag / inertia_y,
+        ],
+        axis=1,
     )
 
 
@@ -106,8 +127,7 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
     out["_by_sigma"] = _by_sigma(
         points, want, dataset, lambda inside: rel_all[inside].max(axis=0), extra={"drag": rel_drag}
     )
-    mass = body["M"]
-    got_r, want_r = drag_ratios(got, mass), drag_ratios(want, mass)
+    got_r, want_r = (drag_ratios(c, points[:, 1], body) for c in (got, want))
     rel_r = np.abs(got_r - want_r) / np.maximum(np.abs(want_r), 1e-300)
     out["_ratios"] = {
         name: {"mean_rel": float(rel_r[:, i].mean()), "max_rel": float(rel_r[:, i].max())}
@@ -189,7 +209,7 @@ def learned_coefficients(learned: EquationsOfMotion, dataset: Dataset) -> dict[s
     }
     out["_coverage"] = _coverage(points)
     out["_by_sigma"] = _by_sigma(points, got, dataset, lambda inside: np.median(got[inside], axis=0))
-    ratios = drag_ratios(got, dataset.constants()["M"])
+    ratios = drag_ratios(got, points[:, 1], dataset.constants())
     out["_ratios"] = {
         name: {
             "median": float(np.median(ratios[:, i])),

@@ -106,9 +106,9 @@ def ensemble_intervals(
     the fraction of points whose true value lies inside the interval (``coverage``) and the mean
     and max relative error of the members' median (``mean_rel``, ``max_rel``)."""
     grid = coefficient_points(eoms[0], dataset)
-    mass = dataset.constants()["M"]
+    body = dataset.constants()
     values = member_coefficients(eoms, grid)
-    ratios = np.stack([drag_ratios(v, mass) for v in values])
+    ratios = np.stack([drag_ratios(v, grid[:, 1], body) for v in values])
     exact = None if truth is None else member_coefficients([truth], grid)[0]
     out: dict[str, dict[str, float]] = {}
     for names, vals, true in (
@@ -117,7 +117,7 @@ def ensemble_intervals(
             with_drag(values, grid, dataset),
             None if exact is None else with_drag(exact[None], grid, dataset)[0],
         ),
-        (RATIO_NAMES, ratios, None if exact is None else drag_ratios(exact, mass)),
+        (RATIO_NAMES, ratios, None if exact is None else drag_ratios(exact, grid[:, 1], body)),
     ):
         median, lo, hi = interval(vals)
         for i, name in enumerate(names):
