@@ -104,10 +104,17 @@ def test_inspect_gives_the_members_median_and_intervals(ensemble, capsys):
     assert code == 0
     report = json.loads(out)
     assert report["members"] == 3 and report["forced"]
-    for name in ("m_ax", "m_ay", "c_q", "c_l", "drag", "c_l/(M+m_ax)"):
+    for name in ("m_ax", "m_ay", "c_q", "c_l", "drag", "c_l/(M+m_ax)", "drag/(M+m_ay)"):
         row = report["coefficients"][name]
         assert row["lo"] <= row["median"] <= row["hi"]
         assert 0.0 <= row["coverage"] <= 1.0 and row["true"] > 0
+    # the total drag over the inertia, (½ρA c_q σ + c_l) / (M + m_ay): steady_vortex's true m_ay is
+    # one constant, so the ratio's median over the points is the drag's median over M + m_ay
+    body = read_dataset(ensemble / "data.h5").constants()
+    rows = report["coefficients"]
+    assert rows["drag/(M+m_ay)"]["true"] == pytest.approx(
+        rows["drag"]["true"] / (body["M"] + rows["m_ay"]["true"]), rel=1e-12
+    )
     table = read_table_columns(ens / "coefficients.csv")
     assert list(table)[:5] == ["r", "sigma", "m_ax", "m_ax_lo", "m_ax_hi"]
     assert set(table) >= {f"{n}{e}" for n in ("m_ay", "c_q", "c_l") for e in ("", "_lo", "_hi")}

@@ -378,6 +378,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().out.split())
     assert "are NOT determined by the data" in said and "c_l/(M+m_ax)" in said
+    assert "drag/(M+m_ax)" in said and "drag/(M + m_a) most tightly" in said
     assert "the data fix their sum" not in said  # unforced, the total drag is not determined either
     coefficients = read_csv_columns(run / "coefficients.csv")
     assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l", "drag"]
