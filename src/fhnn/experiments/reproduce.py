@@ -141,17 +141,20 @@ def _reproduce(
     groups: dict[str, list[ModelJob]] = {}  # a task of several jobs (seeds_together): its jobs
 
     def model_tasks(d: DataJob) -> list[Task]:
-        waiting = [j for j in todo_jobs if j.data.id == d.id]
-        solo = [Task(j.id, "model", (j.spec, data_arg(d), d.filename)) for j in waiting if not j.together]
-        cells: dict[tuple[str, str, str], list[ModelJob]] = {}
-        for j in waiting:
-            if j.together:
-                cells.setdefault(j.cell, []).append(j)
-        for members in cells.values():
-            name = "+".join(j.id for j in members)
-            groups[name] = members
-            solo.append(Task(name, "models", ([j.spec for j in members], data_arg(d), d.filename)))
-        return solo
+        """A task per unfinished job of ``d``, or per table cell for jobs trained together."""
+        tasks: dict[object, list[ModelJob]] = {}
+        for j in todo_jobs:
+            if j.data.id == d.id:
+                tasks.setdefault(j.cell if j.together else j.id, []).append(j)
+        out = []
+        for members in tasks.values():
+            if len(members) == 1:
+                out.append(Task(members[0].id, "model", (members[0].spec, data_arg(d), d.filename)))
+            else:
+                name = "+".join(j.id for j in members)
+                groups[name] = members
+                out.append(Task(name, "models", ([j.spec for j in members], data_arg(d), d.filename)))
+        return out
 
     def on_done(task: Task, output: object) -> list[Task]:
         nonlocal done
