@@ -1,0 +1,279 @@
+"""How precisely issue 14's data can fix the coefficients at all: the Cramér–Rao bound.
+
+``benchmarks/own_data.py`` trains on a tracker's positions (1 mm noise, times jittered ±30 % around
+0.05 s, 5 % of rows dropped) and scores the coefficients against the truth. This script asks what
+*any* unbiased estimator could do with the same observations. It takes the simulator's own
+equations (:meth:`fhnn.data.dataset.Dataset.equations`: the Lamb–Oseen flow and the coefficient
+laws) with a few parameters free, every training trajectory's start state free too (a nuisance
+for each, as a forecaster's fitted start), and the observed positions of the imported training
+split with independent N(0, σ_n²) errors; the Fisher information of the parameters is
+``Σ Jᵀ J / σ_n²`` (``J``: the positions' sensitivities, forward-mode through an RK4 solve at the
+simulation's 0.01 s), the start states are eliminated (Schur complement), and its inverse bounds
+the covariance of any unbiased estimate. Derived quantities (``c_q(σ)`` at the visited σ, the
+total drag, the ratios ``c / (M + m_a)``) by the delta method.
+
+Two families, both with the flow's ``Γ`` and ``r_c`` free and each parameter relative to its
+true value:
+
+- ``law``: the truth's own form — ``m_ax, m_ay, c_l`` constants, ``c_q = c_inf + c_0 / (1 + σ/σ_ref)``
+  (8 parameters). Knowing the form of the law is more than FHNN knows, so this is a floor;
+- ``knots``: ``c_q(σ)`` free at ``--knots`` values of σ, linear between them and held beyond
+  (spread over the visited σ by quantile): closer to what a coefficient net must pin down.
+
+FHNN's nets (flow and coefficients as functions) have more freedom than either, so its errors can
+only be larger. The bound says whether a target can be met with these data at all: a 90 %
+interval of an unbiased estimate is at least ``2 · 1.645 · sd`` wide.
+
+Usage::
+
+    python benchmarks/own_data_bound.py [--out DIR] [--data-seed K] [--no-forcing] [--noise STD]
+        [--knots K]
+
+``--out`` is ``own_data.py``'s folder (default ``benchmarks/_own_data``): its data are reused
+(simulated and imported as ``own_data.py`` does where they are not there).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from own_data import make_data, with_truth
+
+from fhnn.data.dataset import read_dataset
+from fhnn.evaluation.recovery import SIGMA_BANDS, drag_terms, visited_r_sigma
+from fhnn.physics.actuation import actuation_force
+from fhnn.physics.body import AbstractLaw
+from fhnn.physics.integrators import rk4_solve
+
+LEVEL_Z = 1.6448536269514722  # the normal's 95 % quantile: a 90 % interval is ±z·sd
+
+
+class KnotLaw(AbstractLaw):
+    """``c_q(σ)`` linear between ``values`` at ``knots`` [m/s], held beyond them."""
+
+    knots: jax.Array
+    values: jax.Array
+
+    def __call__(self, r, sigma):
+        return jnp.interp(sigma, self.knots, self.values)
+
+
+def parametrised(truth, family: str, knots: np.ndarray | None):
+    """``(build, names)``: ``build(θ)`` the equations with each free parameter at ``truth · (1 + θ_i)``,
+    ``names`` their names (``θ = 0`` is the truth, or for ``knots`` the truth's law sampled at them)."""
+    law = truth.coefficients.c_q
+    names = ["m_ax", "m_ay", "c_l", "gamma", "r_c"]
+    if family == "law":
+        base_cq = jnp.array([law.c_inf, law.c_0, law.sigma_ref])
+        names += ["c_inf", "c_0", "sigma_ref"]
+    else:
+        base_cq = jnp.asarray(law(jnp.zeros_like(knots), jnp.asarray(knots)))
+        names += [f"c_q({k:.3g})" for k in knots]
+    base = jnp.array(
+        [
+            truth.coefficients.m_ax.value,
+            truth.coefficients.m_ay.value,
+            truth.coefficients.c_l.value,
+            truth.flow.gamma,
+            truth.flow.core_radius,
+        ]
+    )
+
+    def build(theta):
+        v = base * (1.0 + theta[:5])
+        cq = base_cq * (1.0 + theta[5:])
+        eom = eqx.tree_at(
+            lambda e: (
+                e.coefficients.m_ax.value,
+                e.coefficients.m_ay.value,
+                e.coefficients.c_l.value,
+                e.flow.gamma,
+                e.flow.core_radius,
+            ),
+            truth,
+            tuple(v),
+        )
+        if family == "law":
+            new_law = type(law)(c_inf=cq[0], c_0=cq[1], sigma_ref=cq[2])
+        else:
+            new_law = KnotLaw(jnp.asarray(knots), cq)
+        return eqx.tree_at(lambda e: e.coefficients.c_q, eom, new_law)
+
+    return build, names
+
+
+def fisher(build, n_par: int, starts: np.ndarray, actuation: np.ndarray, ts: np.ndarray, rows: list):
+    """The Fisher information ``(n_par, n_par)`` of the free parameters for unit noise, each
+    trajectory's start state eliminated; ``rows[i]``: the grid indices at which trajectory ``i``'s
+    position was observed."""
+
+    def positions(z, p):
+        eom = build(z[:n_par])
+        return rk4_solve(lambda s, t: eom(s, t, actuation_force(p, t)), z[n_par:], jnp.asarray(ts))[:, :2]
+
+    jac = jax.jit(jax.vmap(jax.jacfwd(positions), in_axes=(0, 0)))
+    z0 = np.concatenate([np.zeros((len(starts), n_par)), starts], axis=1)
+    total = np.zeros((n_par, n_par))
+    for lo in range(0, len(starts), 16):
+        sens = np.asarray(jac(jnp.asarray(z0[lo : lo + 16]), jnp.asarray(actuation[lo : lo + 16])))
+        for i, j in enumerate(sens):
+            obs = j[rows[lo + i]].reshape(-1, n_par + 4)  # (2·observed, parameters + start)
+            info = obs.T @ obs
+            a, b, c = info[:n_par, :n_par], info[:n_par, n_par:], info[n_par:, n_par:]
+            total += a - b @ np.linalg.solve(c, b.T)
+    return total
+
+
+def bound(info: np.ndarray, rcond: float = 1e-10) -> tuple[np.ndarray, int]:
+    """The pseudo-inverse of ``info`` and how many directions it leaves out (not identifiable:
+    eigenvalues below ``rcond`` of the largest)."""
+    w, v = np.linalg.eigh(info)
+    keep = w > rcond * w.max()
+    return (v[:, keep] / w[keep]) @ v[:, keep].T, int((~keep).sum())
+
+
+def derived(build, names, cov, points, body) -> dict:
+    """Relative standard deviations: per parameter, and per visited point ``(r, σ)`` of ``c_q``, the
+    total drag and the ratios ``c_l/(M+m_ax)`` etc. (delta method, forward-mode)."""
+    n = len(names)
+
+    def quantities(theta):
+        coef = jax.vmap(build(theta).coefficients)(points[:, 0], points[:, 1])  # (P, 4)
+        _, drag = drag_terms(coef, points[:, 1], body)
+        m = body["M"] + coef[:, :2]
+        return jnp.log(
+            jnp.stack(
+                [
+                    coef[:, 2],
+                    coef[:, 3],
+                    drag,
+                    coef[:, 3] / m[:, 0],
+                    coef[:, 3] / m[:, 1],
+                    coef[:, 2] / m[:, 0],
+                    coef[:, 2] / m[:, 1],
+                    drag / m[:, 0],
+                    drag / m[:, 1],
+                ],
+                axis=1,
+            )
+        )
+
+    grad = np.asarray(jax.jacfwd(quantities)(jnp.zeros(n)))  # (P, 9, n): d log q / dθ
+    sd = np.sqrt(np.maximum(np.einsum("pqi,ij,pqj->pq", grad, cov, grad), 0.0))
+    labels = ["c_q", "c_l", "drag", "c_l/(M+m_ax)", "c_l/(M+m_ay)", "c_q/(M+m_ax)", "c_q/(M+m_ay)"]
+    labels += ["drag/(M+m_ax)", "drag/(M+m_ay)"]
+    return {"parameters": dict(zip(names, np.sqrt(np.maximum(np.diag(cov), 0.0)).tolist(), strict=True))} | {
+        "per_point": dict(zip(labels, sd.T, strict=True))
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", type=Path, default=Path("benchmarks/_own_data"))
+    p.add_argument("--data-seed", type=int, default=0)
+    p.add_argument("--no-forcing", action="store_true")
+    p.add_argument("--noise", type=float, default=1e-3, help="std of the position noise [m]")
+    p.add_argument("--knots", type=int, default=8, help="knots of c_q(σ) in the 'knots' family")
+    args = p.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    fine, table, _, data, _ = make_data(
+        args.out, args.data_seed, no_forcing=args.no_forcing, noise=args.noise
+    )
+    imported = read_dataset(data)
+    scored = with_truth(imported, fine)
+    truth = scored.equations()
+    body = scored.constants()
+    # fine's trajectories in the order the table numbers them (train, val, test), and the training
+    # split's observed grid indices
+    splits = [fine[name] for name in ("train", "val", "test")]
+    ts = splits[0].t
+    if any(s.t.shape != ts.shape or not np.allclose(s.t, ts) for s in splits):
+        raise SystemExit("the fine data's splits must share one time grid")
+    starts = np.concatenate([s.states_clean[:, 0] for s in splits])
+    actuation = np.concatenate([s.actuation for s in splits])
+    ids = [int(k) for k in imported.extra["import"]["traj_ids"]["train"]]
+    seen = ~np.isnan(table["x"])
+    dt = ts[1] - ts[0]
+    rows = [np.rint(np.sort(table["t"][seen & (table["traj_id"] == k)]) / dt).astype(int) for k in ids]
+    points = visited_r_sigma(truth, scored)
+    edges = np.quantile(points[:, 1], SIGMA_BANDS)
+    band = np.clip(np.searchsorted(edges, points[:, 1], side="right") - 1, 0, len(edges) - 2)
+    quad, drag = (
+        np.asarray(x)
+        for x in drag_terms(np.asarray(jax.vmap(truth.coefficients)(*points.T)), points[:, 1], body)
+    )
+    share = quad / drag
+    knots = np.quantile(points[:, 1], np.linspace(0.0, 1.0, args.knots))
+    out: dict = {
+        "data_seed": args.data_seed,
+        "forcing": not args.no_forcing,
+        "noise": args.noise,
+        "trajectories": len(ids),
+        "observations": int(sum(len(r) for r in rows)),
+        "families": {},
+    }
+    print(
+        f"own data, data seed {args.data_seed}, {'with' if not args.no_forcing else 'without'} forcing, "
+        f"noise {args.noise * 1e3:g} mm: {len(ids)} training trajectories, {out['observations']} positions"
+    )
+    for family in ("law", "knots"):
+        build, names = parametrised(truth, family, knots if family == "knots" else None)
+        info = fisher(build, len(names), starts[ids], actuation[ids], ts, rows) / args.noise**2
+        cov, dropped = bound(info)
+        d = derived(build, names, cov, jnp.asarray(points), body)
+        pp = d["per_point"]
+        cq, dg = ("c_q", "drag") if not dropped else ("c_q/(M+m_ax)", "drag/(M+m_ax)")
+        res = {
+            "parameters_sd": d["parameters"],
+            "not_identifiable_directions": dropped,
+            "mean_sd": {
+                k: float(np.mean(v)) for k, v in pp.items() if k != "c_q" and (not dropped or "/" in k)
+            },
+            # without forcing the masses are not identifiable: c_q and the drag over M + m_ax instead
+            "by_sigma_quantities": [cq, dg],
+            "c_q_by_sigma": [
+                {
+                    "sigma": [float(edges[b]), float(edges[b + 1])],
+                    "quadratic_share": float(share[band == b].mean()),
+                    "c_q_sd_max": float(pp[cq][band == b].max()),
+                    "drag_sd_max": float(pp[dg][band == b].max()),
+                }
+                for b in range(len(edges) - 1)
+                if (band == b).any()
+            ],
+        }
+        out["families"][family] = res
+        sd = res["parameters_sd"]
+        print(
+            f"\n{family}: {len(names)} parameters ({', '.join(names)}), "
+            f"{dropped} direction(s) not identifiable"
+        )
+        alone = f"m_ax {sd['m_ax']:.3%}, m_ay {sd['m_ay']:.3%}, c_l {sd['c_l']:.3%}, " if not dropped else ""
+        print(
+            f"  relative sd (1σ): {alone}Γ {sd['gamma']:.3%}, r_c {sd['r_c']:.3%}; "
+            + ", ".join(f"{k} {v:.3%}" for k, v in res["mean_sd"].items() if "/" in k or k == "drag")
+        )
+        print(f"  per σ band (quadratic share; largest sd of {cq}, 90 % interval at least; of {dg}):")
+        for b in res["c_q_by_sigma"]:
+            print(
+                f"    {b['sigma'][0]:.3f}–{b['sigma'][1]:.3f} m/s ({b['quadratic_share']:4.0%}): "
+                f"{b['c_q_sd_max']:.2%} (±{LEVEL_Z * b['c_q_sd_max']:.1%}); {b['drag_sd_max']:.3%}"
+            )
+    tag = (
+        f"seed{args.data_seed}"
+        + ("_noforce" if args.no_forcing else "")
+        + (f"_noise{args.noise:g}" if args.noise != 1e-3 else "")
+    )
+    path = args.out / f"bound_{tag}.json"
+    path.write_text(json.dumps(out, indent=1))
+    print(f"\nwrote {path}")
+
+
+if __name__ == "__main__":
+    main()
