@@ -12,13 +12,15 @@ simulation's 0.01 s), the start states are eliminated (Schur complement), and it
 the covariance of any unbiased estimate. Derived quantities (``c_q(σ)`` at the visited σ, the
 total drag, the ratios ``c / (M + m_a)``) by the delta method.
 
-Two families, both with the flow's ``Γ`` and ``r_c`` free and each parameter relative to its
+Three families, each with the flow's ``Γ`` and ``r_c`` free and each parameter relative to its
 true value:
 
 - ``law``: the truth's own form — ``m_ax, m_ay, c_l`` constants, ``c_q = c_inf + c_0 / (1 + σ/σ_ref)``
   (8 parameters). Knowing the form of the law is more than FHNN knows, so this is a floor;
 - ``knots``: ``c_q(σ)`` free at ``--knots`` values of σ, linear between them and held beyond
-  (spread over the visited σ by quantile): closer to what a coefficient net must pin down.
+  (spread over the visited σ by quantile): closer to what a coefficient net must pin down;
+- ``all-knots``: the added masses free at the same values of σ too (FHNN's masses are functions of
+  ``(r, σ)``, as are its ``c_q``).
 
 FHNN's nets (flow and coefficients as functions) have more freedom than either, so its errors can
 only be larger. The bound says whether a target can be met with these data at all: a 90 %
@@ -48,14 +50,14 @@ from own_data import make_data, with_truth
 from fhnn.data.dataset import read_dataset
 from fhnn.evaluation.recovery import SIGMA_BANDS, drag_terms, visited_r_sigma
 from fhnn.physics.actuation import actuation_force
-from fhnn.physics.body import AbstractLaw
+from fhnn.physics.body import AbstractLaw, CoefficientLaws, Constant
 from fhnn.physics.integrators import rk4_solve
 
 LEVEL_Z = 1.6448536269514722  # the normal's 95 % quantile: a 90 % interval is ±z·sd
 
 
 class KnotLaw(AbstractLaw):
-    """``c_q(σ)`` linear between ``values`` at ``knots`` [m/s], held beyond them."""
+    """A coefficient linear in σ between ``values`` at ``knots`` [m/s], held beyond them."""
 
     knots: jax.Array
     values: jax.Array
@@ -64,46 +66,59 @@ class KnotLaw(AbstractLaw):
         return jnp.interp(sigma, self.knots, self.values)
 
 
-def parametrised(truth, family: str, knots: np.ndarray | None):
-    """``(build, names)``: ``build(θ)`` the equations with each free parameter at ``truth · (1 + θ_i)``,
-    ``names`` their names (``θ = 0`` is the truth, or for ``knots`` the truth's law sampled at them)."""
-    law = truth.coefficients.c_q
-    names = ["m_ax", "m_ay", "c_l", "gamma", "r_c"]
-    if family == "law":
-        base_cq = jnp.array([law.c_inf, law.c_0, law.sigma_ref])
-        names += ["c_inf", "c_0", "sigma_ref"]
-    else:
-        base_cq = jnp.asarray(law(jnp.zeros_like(knots), jnp.asarray(knots)))
-        names += [f"c_q({k:.3g})" for k in knots]
-    base = jnp.array(
-        [
-            truth.coefficients.m_ax.value,
-            truth.coefficients.m_ay.value,
-            truth.coefficients.c_l.value,
-            truth.flow.gamma,
-            truth.flow.core_radius,
-        ]
+#: The families of :func:`parametrised`: which coefficients are free functions of σ (at the knots).
+FAMILIES = {"law": (), "knots": ("c_q",), "all-knots": ("m_ax", "m_ay", "c_q")}
+
+
+def parametrised(truth, family: str, knots: np.ndarray):
+    """``(build, names)``: ``build(θ)`` the equations with each free parameter at ``base · (1 + θ_i)``,
+    ``names`` their names. The base is the truth: its constants and its ``c_q`` law's three
+    parameters, or for a coefficient free at the knots (:data:`FAMILIES`) its true law sampled there."""
+    co, flow = truth.coefficients, truth.flow
+    sig = jnp.asarray(knots)
+    free = FAMILIES[family]
+    parts: list[tuple[str, jax.Array]] = []  # (name, base values)
+    for name in ("m_ax", "m_ay"):
+        law = getattr(co, name)
+        parts.append((name, law(jnp.zeros_like(sig), sig) if name in free else jnp.array([law.value])))
+    parts += [("c_l", jnp.array([co.c_l.value])), ("gamma", jnp.array([flow.gamma]))]
+    parts.append(("r_c", jnp.array([flow.core_radius])))
+    law = co.c_q
+    cq_base = (
+        law(jnp.zeros_like(sig), sig) if "c_q" in free else jnp.array([law.c_inf, law.c_0, law.sigma_ref])
     )
+    parts.append(("c_q", cq_base))
+    sizes = [len(b) for _, b in parts]
+    base = jnp.concatenate([b for _, b in parts])
+    names = []
+    for name, b in parts:
+        if len(b) == 1:
+            names.append(name)
+        elif name == "c_q" and "c_q" not in free:
+            names += ["c_inf", "c_0", "sigma_ref"]
+        else:
+            names += [f"{name}({k:.3g})" for k in knots]
 
     def build(theta):
-        v = base * (1.0 + theta[:5])
-        cq = base_cq * (1.0 + theta[5:])
-        eom = eqx.tree_at(
-            lambda e: (
-                e.coefficients.m_ax.value,
-                e.coefficients.m_ay.value,
-                e.coefficients.c_l.value,
-                e.flow.gamma,
-                e.flow.core_radius,
-            ),
-            truth,
-            tuple(v),
+        values = dict(
+            zip([n for n, _ in parts], jnp.split(base * (1.0 + theta), np.cumsum(sizes)[:-1]), strict=True)
         )
-        if family == "law":
-            new_law = type(law)(c_inf=cq[0], c_0=cq[1], sigma_ref=cq[2])
-        else:
-            new_law = KnotLaw(jnp.asarray(knots), cq)
-        return eqx.tree_at(lambda e: e.coefficients.c_q, eom, new_law)
+
+        def law_of(name):
+            v = values[name]
+            if name in free:
+                return KnotLaw(sig, v)
+            if name == "c_q":
+                return type(co.c_q)(c_inf=v[0], c_0=v[1], sigma_ref=v[2])
+            return Constant(v[0])
+
+        coefficients = CoefficientLaws(
+            m_ax=law_of("m_ax"), m_ay=law_of("m_ay"), c_q=law_of("c_q"), c_l=Constant(values["c_l"][0])
+        )
+        eom = eqx.tree_at(
+            lambda e: (e.flow.gamma, e.flow.core_radius), truth, (values["gamma"][0], values["r_c"][0])
+        )
+        return eqx.tree_at(lambda e: e.coefficients, eom, coefficients)
 
     return build, names
 
@@ -139,8 +154,8 @@ def bound(info: np.ndarray, rcond: float = 1e-10) -> tuple[np.ndarray, int]:
 
 
 def derived(build, names, cov, points, body) -> dict:
-    """Relative standard deviations: per parameter, and per visited point ``(r, σ)`` of ``c_q``, the
-    total drag and the ratios ``c_l/(M+m_ax)`` etc. (delta method, forward-mode)."""
+    """Relative standard deviations: per parameter, and per visited point ``(r, σ)`` of each
+    coefficient, the total drag and the ratios ``c_l/(M+m_ax)`` etc. (delta method, forward-mode)."""
     n = len(names)
 
     def quantities(theta):
@@ -150,6 +165,8 @@ def derived(build, names, cov, points, body) -> dict:
         return jnp.log(
             jnp.stack(
                 [
+                    coef[:, 0],
+                    coef[:, 1],
                     coef[:, 2],
                     coef[:, 3],
                     drag,
@@ -164,9 +181,19 @@ def derived(build, names, cov, points, body) -> dict:
             )
         )
 
-    grad = np.asarray(jax.jacfwd(quantities)(jnp.zeros(n)))  # (P, 9, n): d log q / dθ
+    grad = np.asarray(jax.jacfwd(quantities)(jnp.zeros(n)))  # (P, 11, n): d log q / dθ
     sd = np.sqrt(np.maximum(np.einsum("pqi,ij,pqj->pq", grad, cov, grad), 0.0))
-    labels = ["c_q", "c_l", "drag", "c_l/(M+m_ax)", "c_l/(M+m_ay)", "c_q/(M+m_ax)", "c_q/(M+m_ay)"]
+    labels = [
+        "m_ax",
+        "m_ay",
+        "c_q",
+        "c_l",
+        "drag",
+        "c_l/(M+m_ax)",
+        "c_l/(M+m_ay)",
+        "c_q/(M+m_ax)",
+        "c_q/(M+m_ay)",
+    ]
     labels += ["drag/(M+m_ax)", "drag/(M+m_ay)"]
     return {"parameters": dict(zip(names, np.sqrt(np.maximum(np.diag(cov), 0.0)).tolist(), strict=True))} | {
         "per_point": dict(zip(labels, sd.T, strict=True))
@@ -179,7 +206,7 @@ def main() -> None:
     p.add_argument("--data-seed", type=int, default=0)
     p.add_argument("--no-forcing", action="store_true")
     p.add_argument("--noise", type=float, default=1e-3, help="std of the position noise [m]")
-    p.add_argument("--knots", type=int, default=8, help="knots of c_q(σ) in the 'knots' family")
+    p.add_argument("--knots", type=int, default=8, help="knots of the coefficients free in σ")
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     fine, table, _, data, _ = make_data(
@@ -222,8 +249,8 @@ def main() -> None:
         f"own data, data seed {args.data_seed}, {'with' if not args.no_forcing else 'without'} forcing, "
         f"noise {args.noise * 1e3:g} mm: {len(ids)} training trajectories, {out['observations']} positions"
     )
-    for family in ("law", "knots"):
-        build, names = parametrised(truth, family, knots if family == "knots" else None)
+    for family in FAMILIES:
+        build, names = parametrised(truth, family, knots)
         info = fisher(build, len(names), starts[ids], actuation[ids], ts, rows) / args.noise**2
         cov, dropped = bound(info)
         d = derived(build, names, cov, jnp.asarray(points), body)
@@ -249,14 +276,15 @@ def main() -> None:
             ],
         }
         out["families"][family] = res
-        sd = res["parameters_sd"]
+        sd = {**res["parameters_sd"], **res["mean_sd"]}
         print(
             f"\n{family}: {len(names)} parameters ({', '.join(names)}), "
             f"{dropped} direction(s) not identifiable"
         )
         alone = f"m_ax {sd['m_ax']:.3%}, m_ay {sd['m_ay']:.3%}, c_l {sd['c_l']:.3%}, " if not dropped else ""
         print(
-            f"  relative sd (1σ): {alone}Γ {sd['gamma']:.3%}, r_c {sd['r_c']:.3%}; "
+            "  relative sd (1σ; of a function of σ: its mean over the visited points): "
+            f"{alone}Γ {sd['gamma']:.3%}, r_c {sd['r_c']:.3%}; "
             + ", ".join(f"{k} {v:.3%}" for k, v in res["mean_sd"].items() if "/" in k or k == "drag")
         )
         print(f"  per σ band (quadratic share; largest sd of {cq}, 90 % interval at least; of {dg}):")
