@@ -35,15 +35,16 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _common import dataset
+from fhnn_targets import train
+from own_data import make_data, run_cli, with_truth
 
 import fhnn.models.registry as registry
+from fhnn.data.dataset import read_dataset
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.models.fhnn import CoefficientNet, build_fhnn, cap, uncap
 from fhnn.runtime import default_cache_dir, use_compilation_cache
-from fhnn.training.plans import data_settings, default_settings
-from fhnn.training.run import Run, RunConfig
+from fhnn.training.run import Run
 
 
 class BasisCoefficientNet(CoefficientNet):
@@ -95,14 +96,10 @@ def install(basis: str, degree: int, span: float, knots: tuple[float, ...]) -> N
 
 
 def steady(out: Path, seed: int | None) -> dict:
-    ds, path = dataset("steady_vortex", out, seed=seed)
-    config = RunConfig().with_settings({**default_settings(ds), **data_settings(ds)})
-    run = Run.create(out / f"run_steady_seed{seed or 0}", ds, config, data_path=path)
-    t0 = time.perf_counter()
-    run.train(ds)
+    ds, run, seconds = train("steady_vortex", out, {}, None, seed=seed)
     model = run.state.best_model
     return {
-        "seconds": time.perf_counter() - t0,
+        "seconds": seconds,
         "val_loss": run.state.best_val,
         "rmse_pos_5s": evaluate(model, ds, [5])["horizons"]["5"]["rmse_pos"],
         "coefficients": coefficient_recovery(model.coefficients, ds),
@@ -111,16 +108,12 @@ def steady(out: Path, seed: int | None) -> dict:
 
 
 def own(out: Path, seed: int) -> dict:
-    from own_data import make_data, run_cli, with_truth
-
     fine, _, _, data, _ = make_data(out, seed)
     folder = out / f"run_own_seed{seed}"
     t0 = time.perf_counter()
     run_cli("train", str(data), "-o", str(folder), "-q")
     run = Run.load(folder)
     model = run.state.best_model
-    from fhnn.data.dataset import read_dataset
-
     scored = with_truth(read_dataset(data), fine)
     return {
         "seconds": time.perf_counter() - t0,

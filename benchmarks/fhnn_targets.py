@@ -46,8 +46,10 @@ from fhnn.training.plans import DEFAULT_PLAN, data_settings, default_settings, g
 from fhnn.training.run import Run, RunConfig
 
 
-def train(name: str, folder: Path, options: dict, plan: str | None):
-    ds, path = dataset(name, folder)
+def train(name: str, folder: Path, options: dict, plan: str | None, seed: int | None = None):
+    """Train FHNN on scenario ``name`` (its default data seed, or ``seed``) in ``folder`` as ``fhnn
+    train`` does, or with ``plan``, ``options`` over it; returns the data, the run and its seconds."""
+    ds, path = dataset(name, folder, seed=seed)
     given = {f"{part}.{k}": v for part in ("model", "train") for k, v in options.get(part, {}).items()}
     start = get_plan(plan).settings("fhnn") if plan else default_settings(ds)
     config = RunConfig().with_settings({**start, **data_settings(ds), **given})

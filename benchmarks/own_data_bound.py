@@ -45,7 +45,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from own_data import make_data, with_truth
+from own_data import data_suffix, make_data, with_truth
 
 from fhnn.data.dataset import read_dataset
 from fhnn.evaluation.recovery import SIGMA_BANDS, drag_terms, visited_r_sigma
@@ -293,12 +293,7 @@ def main() -> None:
                 f"    {b['sigma'][0]:.3f}–{b['sigma'][1]:.3f} m/s ({b['quadratic_share']:4.0%}): "
                 f"{b['c_q_sd_max']:.2%} (±{LEVEL_Z * b['c_q_sd_max']:.1%}); {b['drag_sd_max']:.3%}"
             )
-    tag = (
-        f"seed{args.data_seed}"
-        + ("_noforce" if args.no_forcing else "")
-        + (f"_noise{args.noise:g}" if args.noise != 1e-3 else "")
-    )
-    path = args.out / f"bound_{tag}.json"
+    path = args.out / f"bound_seed{args.data_seed}{data_suffix(args.no_forcing, args.noise)}.json"
     path.write_text(json.dumps(out, indent=1))
     print(f"\nwrote {path}")
 
