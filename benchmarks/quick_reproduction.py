@@ -8,9 +8,12 @@ reproduction of the same shapes gets), and prints:
 - where the cold run's time went: data sets (simulation, mostly compiling the solver), training
   and evaluation per model job (from each job's ``result.json``), and the rest (process start,
   imports, the report);
-- that every table T1–T6 has rows and every figure of the report exists (the checks of the slow
-  test ``tests/test_reproduce.py::test_quick_reproduction_runs_every_table_and_renders``, which
-  this script stands in for in the default test run).
+- the wall time of a rerun into the cold run's folder, which must run nothing and keep the report;
+- whether both reports pass the checks of the slow test
+  ``tests/test_reproduce.py::test_quick_reproduction_runs_every_table_and_renders``, which this
+  script stands in for in the default test run (``tests/report_checks.py``: every table T1–T6 in
+  three formats with the paper's column, every figure, the Markdown report, and the self-contained
+  HTML rendered in headless Chromium with every image decoded).
 
 With ``--seeds N`` it times the reproduction's seed axis instead: ``--quick --seeds N`` cold, with a
 job per seed and with each cell's seeds as one task (``--set seeds_together=true``), their ratio,
@@ -31,18 +34,23 @@ import subprocess
 import sys
 import tempfile
 import time
+import traceback
 from pathlib import Path
 
 import fhnn
+from fhnn.experiments.grid import ReproduceConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from tests.report_checks import check_report as report_checks  # noqa: E402
 
 TARGET_SECONDS = 90.0
 ANCHOR_SECONDS = 179.0
-TABLES = ("T1", "T2", "T3", "T4", "T5", "T6")
-FIGURES = ("flow", "rollouts", "errors_vs_horizon", "ablations")
 
 
-def run_quick(out: Path, cache: Path, workers: int | None, *extra: str) -> float:
-    """Wall seconds of ``fhnn reproduce --quick -o out [extra]`` with the compilation cache ``cache``."""
+def run_quick(out: Path, cache: Path, workers: int | None, *extra: str, expect: str | None = None) -> float:
+    """Wall seconds of ``fhnn reproduce --quick -o out [extra]`` with the compilation cache ``cache``
+    (exits with the command's error if it fails, or if its summary lacks ``expect``)."""
     cmd = [sys.executable, "-m", "fhnn.cli.app", "reproduce", "--quick", "-o", str(out), "-q", *extra]
     if workers is not None:
         cmd += ["--workers", str(workers)]
@@ -53,25 +61,22 @@ def run_quick(out: Path, cache: Path, workers: int | None, *extra: str) -> float
     if done.returncode != 0:
         sys.stderr.write(done.stderr)  # the whole of it: a worker that died says why
         sys.exit(f"fhnn reproduce --quick failed: {done.stderr.strip().splitlines()[-1:]}")
+    if expect is not None and expect not in done.stdout:
+        sys.exit(
+            f"fhnn reproduce --quick into {out}: expected {expect!r} in its summary, got {done.stdout!r}"
+        )
     return seconds
 
 
 def check_report(out: Path) -> list[str]:
-    """What is missing from the report in ``out`` (empty when every table and figure is there)."""
-    missing = []
-    for key in TABLES:
-        path = out / "tables" / f"{key}.json"
-        if not path.is_file() or not json.loads(path.read_text()):
-            missing.append(f"table {key}")
-    for stem in FIGURES:
-        for ext in ("png", "svg"):
-            path = out / "figures" / f"{stem}_solid_body_vortex.{ext}"
-            if not path.is_file() or path.stat().st_size < 5000:
-                missing.append(str(path.relative_to(out)))
-    for name in ("report.md", "index.html"):
-        if not (out / name).is_file():
-            missing.append(name)
-    return missing
+    """What fails the report checks in ``out`` (``tests/report_checks.py``; empty when it passes):
+    the failed check's line."""
+    try:
+        report_checks(out, out.parent, set(ReproduceConfig.quick().scenario_table))
+    except (AssertionError, OSError, ValueError, subprocess.SubprocessError) as e:
+        line = traceback.extract_tb(e.__traceback__)[-1].line
+        return [f"{out.name}: {line} {str(e)[:300]}".strip()]
+    return []
 
 
 def job_seconds(out: Path) -> dict[str, float]:
@@ -129,7 +134,7 @@ def main() -> None:
     if args.seeds is not None:
         print(f"fhnn {fhnn.__version__}, {os.cpu_count()} CPUs, workers {args.workers or 'one per core'}")
         missing = seed_axis(base, args.workers, args.seeds)
-        print("  report: every table and figure present" if not missing else f"  report: MISSING {missing}")
+        print("  reports: every check passed" if not missing else f"  reports: FAILED {missing}")
         if args.out is None:
             shutil.rmtree(base, ignore_errors=True)
         sys.exit(1 if missing else 0)
@@ -139,6 +144,7 @@ def main() -> None:
     print(f"fhnn {fhnn.__version__}, {os.cpu_count()} CPUs, workers {args.workers or 'one per core'}")
     cold = run_quick(base / "cold", cache, args.workers)
     warm = run_quick(base / "warm", cache, args.workers)
+    again = run_quick(base / "cold", cache, args.workers, expect="nothing changed, report kept")
     parts = job_seconds(base / "cold")
     print("fhnn reproduce --quick (every table and figure, 1 seed)")
     print(
@@ -146,12 +152,13 @@ def main() -> None:
         f"ratio {cold / TARGET_SECONDS:.2f}  anchor {ANCHOR_SECONDS:.0f} s: ratio {cold / ANCHOR_SECONDS:.2f}"
     )
     print(f"  warm compilation cache  {warm:6.1f} s   ratio to cold {warm / cold:.2f}")
+    print(f"  rerun, nothing changed  {again:6.1f} s   (no job run, the report kept)")
     print(
         f"  cold run's {parts['jobs']} model jobs: training {parts['train']:.1f} s, evaluation "
         f"{parts['eval']:.1f} s of worker time (summed over workers)"
     )
     missing = check_report(base / "cold") + check_report(base / "warm")
-    print("  report: every table and figure present" if not missing else f"  report: MISSING {missing}")
+    print("  reports: every check passed" if not missing else f"  reports: FAILED {missing}")
     if args.out is None:
         shutil.rmtree(base, ignore_errors=True)
     if missing:

@@ -53,7 +53,6 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 #: The longest tests (one to five minutes each on 2 cores), run first, so that the two xdist
 #: workers finish together rather than one waiting on a long test that started last.
 LONGEST_FIRST = (
-    "test_reproduce.py::test_a_reproduction_fills_every_table_and_figure_and_renders",
     "test_faults.py::test_reproduction_killed_three_times",
     "test_reproduce.py::test_ray_cluster_gives_the_numbers_of_the_local_executor",
     "test_baselines.py::test_dissipative_hnn_fits",

@@ -21,6 +21,8 @@ from fhnn.experiments.reproduce import check_output_folder, reproduce
 from fhnn.experiments.tables import DIVERGENCE_RULE, build_tables, layout, to_csv, to_json, to_markdown
 from fhnn.training.trainer import TrainConfig
 
+from .report_checks import check_report
+
 ROOT = Path(__file__).resolve().parents[1]
 
 # --- the grid --------------------------------------------------------------------------------
@@ -412,40 +414,6 @@ def _fhnn(*args: str) -> list[str]:
     return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
 
 
-def _render(html: Path, tmp: Path) -> str:
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    if chromium is None:
-        pytest.fail("headless Chromium is needed (Debian package 'chromium'; .ci/run installs it)")
-    cmd = [
-        chromium,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-quic",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        f"--user-data-dir={tmp / 'chromium-profile'}",
-        "--virtual-time-budget=10000",
-        "--dump-dom",
-        html.as_uri(),
-    ]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True).stdout
-
-
-#: ``--quick`` cut to a third of its jobs that still fills every table and figure of the report:
-#: T1–T3 with FHNN and the Neural ODE, T5 with one ablation, T4 on ``steady_vortex`` (actuated).
-SMALL_GRID = [
-    "--set",
-    "models=fhnn,node",
-    "--set",
-    "ablations=no_flow",
-    "--set",
-    "scenario_table=steady_vortex",
-]
-
-
 def _reproduce_twice(out: Path, *settings: str) -> None:
     """Run ``fhnn reproduce --quick`` with ``settings`` into ``out`` (its jobs in one process:
     ``--workers 1``; in the suite the other test worker already keeps the second core busy), then
@@ -476,55 +444,14 @@ def _settings(args: tuple[str, ...]) -> dict[str, str]:
     return dict(a.split("=", 1) for a in args[1::2])
 
 
-def _check_report(out: Path, tmp_path: Path, t4: set[str]) -> None:
-    """Every table in three formats, the paper column present, numbers finite or marked diverged;
-    every figure; the Markdown report; the self-contained HTML, every image decoded in headless
-    Chromium."""
-    for key in ("T1", "T2", "T3", "T4", "T5", "T6"):
-        rows = json.loads((out / "tables" / f"{key}.json").read_text())
-        assert rows, key
-        for r in rows:
-            assert "paper" in r
-            assert (r["mean"] is not None and math.isfinite(r["mean"])) or r["diverged"] > 0, r
-        md = (out / "tables" / f"{key}.md").read_text()
-        assert "paper" in md or key == "T6"
-        assert (
-            (out / "tables" / f"{key}.csv").read_text().startswith("table,data,model,horizon,metric,mean,std")
-        )
-    t1 = json.loads((out / "tables" / "T1.json").read_text())
-    assert any(r["paper"] == 1.07e-4 for r in t1)  # the paper's FHNN RMSE at 1 s beside ours
-    assert {r["data"] for r in json.loads((out / "tables" / "T4.json").read_text())} == t4
-    for stem in ("flow", "rollouts", "errors_vs_horizon", "ablations"):
-        for ext in ("png", "svg"):
-            path = out / "figures" / f"{stem}_solid_body_vortex.{ext}"
-            assert path.stat().st_size > 5000, path
-    assert (out / "figures" / "flow_solid_body_vortex.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    report = (out / "report.md").read_text()
-    assert "### T1" in report and "### T6" in report and "![rollouts_solid_body_vortex]" in report
-    html = (out / "index.html").read_text()
-    assert "src='figures/" not in html and html.count("data:image/png;base64,") == 4
-    dom = _render(out / "index.html", tmp_path)
-    total = re.search(r'data-images-total="(\d+)"', dom)
-    loaded = re.search(r'data-images-loaded="(\d+)"', dom)
-    assert total and loaded, dom[:500]
-    assert int(total.group(1)) == 4 and int(loaded.group(1)) == 4
-    assert "T1: FHNN vs Neural ODE" in dom
-
-
-def test_a_reproduction_fills_every_table_and_figure_and_renders(tmp_path: Path) -> None:
-    """The README's main job on a third of its grid (:data:`SMALL_GRID`): every table and figure.
-    (All of ``--quick``: the slow test below and ``benchmarks/quick_reproduction.py``; kills and
-    resumes of a reproduction: tests/test_faults.py.)"""
-    _reproduce_twice(tmp_path / "report", *SMALL_GRID)
-    _check_report(tmp_path / "report", tmp_path, {"steady_vortex"})
-
-
 @pytest.mark.slow
 def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None:
-    """The README's main job as it is, all five scenarios in T4 (covered in the default run by
-    ``benchmarks/quick_reproduction.py``, which times it and checks the same report)."""
+    """The README's main job as it is, all five scenarios in T4, every check of its report
+    (tests/report_checks.py), then again, which must run nothing and keep the report. Covered in
+    the default run by ``benchmarks/quick_reproduction.py``, which times it and makes the same
+    checks; kills and resumes of a reproduction: tests/test_faults.py."""
     _reproduce_twice(tmp_path / "report")
-    _check_report(
+    check_report(
         tmp_path / "report",
         tmp_path,
         {"steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "wave"},
