@@ -414,22 +414,22 @@ def _fhnn(*args: str) -> list[str]:
     return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
 
 
-def _reproduce_twice(out: Path, *settings: str) -> None:
-    """Run ``fhnn reproduce --quick`` with ``settings`` into ``out`` (its jobs in one process:
+def _reproduce_twice(out: Path) -> None:
+    """Run ``fhnn reproduce --quick`` into ``out`` (its jobs in one process:
     ``--workers 1``; in the suite the other test worker already keeps the second core busy), then
     again, which must run nothing and keep the report."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     run = subprocess.run(
-        _fhnn("reproduce", "--quick", "-o", str(out), "-q", "--workers", "1", *settings),
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q", "--workers", "1"),
         env=env,
         capture_output=True,
         text=True,
     )
     assert run.returncode == 0, run.stderr
-    n_data, n_jobs = (len(x) for x in build_grid(ReproduceConfig.quick(_settings(settings))))
+    n_data, n_jobs = (len(x) for x in build_grid(ReproduceConfig.quick()))
     assert f"{n_data} of {n_data} data sets and {n_jobs} of {n_jobs} training jobs run" in run.stdout
     again = subprocess.run(
-        _fhnn("reproduce", "--quick", "-o", str(out), "-q", *settings),
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q"),
         env=env,
         capture_output=True,
         text=True,
@@ -438,10 +438,6 @@ def _reproduce_twice(out: Path, *settings: str) -> None:
     assert (
         f"0 of {n_data} data sets and 0 of" in again.stdout and "nothing changed, report kept" in again.stdout
     )
-
-
-def _settings(args: tuple[str, ...]) -> dict[str, str]:
-    return dict(a.split("=", 1) for a in args[1::2])
 
 
 @pytest.mark.slow
