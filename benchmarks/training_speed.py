@@ -56,7 +56,7 @@ from fhnn.training.plans import DEFAULT_PLAN, PLANS
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import (
     ADAM_CHUNK,
-    ADAM_FIELDS,
+    AdamSettings,
     TrainConfig,
     Trainer,
     adam_chunk,
@@ -79,7 +79,7 @@ def phases(ds) -> None:
     cfg = TrainConfig()
     tr = Trainer(cfg, ds.train, ds.val)
     state = tr.init(fresh(ds))
-    m, o, ac = state.model, state.opt_state, cfg.only(ADAM_FIELDS)
+    m, o, ac = state.model, state.opt_state, AdamSettings.of(cfg)
     step = {
         reg: seconds_per_call(
             lambda r=reg: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, None, ac, r), 100
@@ -92,7 +92,7 @@ def phases(ds) -> None:
         f"  Adam step without it (2nd half)     {step[False] * 1e3:7.2f} ms  "
         f"(ratio {step[False] / step[True]:.2f})"
     )
-    plan = PLANS[DEFAULT_PLAN].train.only(ADAM_FIELDS)  # derivative loss alone, no penalty
+    plan = AdamSettings.of(PLANS[DEFAULT_PLAN].train)  # derivative loss alone, no penalty
     t_plan = seconds_per_call(
         lambda: adam_step(m, o, jnp.asarray(1), tr._train, tr.scales, tr._key, None, plan, False), 100
     )
@@ -182,7 +182,7 @@ def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:
     tr = Trainer(cfg, ds.train, ds.val)
     state = tr.init(fresh(ds, seed))
     one = jnp.asarray(1)
-    rest = (tr._train, tr.scales, tr._key, None, cfg.only(ADAM_FIELDS), True)
+    rest = (tr._train, tr.scales, tr._key, None, AdamSettings.of(cfg), True)
     step = StoredProgram(adam_chunk) if stored else adam_chunk
     t0 = time.perf_counter()
     model, opt_state, _ = step(state.model, state.opt_state, jnp.asarray(0), one, *rest)
@@ -206,7 +206,7 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
     what stacking can gain on this CPU."""
     model_cfg = RunConfig().with_settings({f"model.{k}": v for k, v in model_settings.items()}).model
     args = MODELS["fhnn"].arguments(ds)
-    ac = cfg.only(ADAM_FIELDS)
+    ac = AdamSettings.of(cfg)
     trainers = [Trainer(cfg, ds.train, ds.val) for _ in range(n)]
     states = [t.init(MODELS["fhnn"].make(model_cfg, args, s)) for s, t in enumerate(trainers)]
     data, scales = trainers[0]._train, trainers[0].scales
@@ -235,7 +235,7 @@ def _seeds_as_one(ds, n: int, label: str, cfg: TrainConfig, model_settings: dict
     )
     # why: a step's time grows with the pairs it sees, so stacking seeds stacks work
     m, o = states[0].model, states[0].opt_state
-    wide = cfg.replace(batch_size=n * cfg.batch_size).only(ADAM_FIELDS)
+    wide = AdamSettings.of(cfg.replace(batch_size=n * cfg.batch_size))
     single = seconds_per_call(lambda: chunk(m, o, keys[0], ac), 10) / ADAM_CHUNK
     bigger = seconds_per_call(lambda: chunk(m, o, keys[0], wide), 10) / ADAM_CHUNK
     print(

@@ -1,5 +1,5 @@
-"""The trainer's compiled programs: traced once per shape and configuration, the penalty-free Adam
-step, the warm-up part without the stream MLP, and the commands' compilation cache folder."""
+"""The trainer's compiled programs: traced once per shape and structure (the Adam phase's numbers
+are arguments), the penalty-free Adam step, the warm-up part without the stream MLP, and the commands' compilation cache folder."""
 
 from __future__ import annotations
 
@@ -23,7 +23,13 @@ from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import get_scenario
 from fhnn.runtime import CACHE_ENV, default_cache_dir
 from fhnn.training.run import Run
-from fhnn.training.trainer import ADAM_FIELDS, PENALTY_FREE_MIN_STEPS, TrainConfig, Trainer, adam_step
+from fhnn.training.trainer import (
+    PENALTY_FREE_MIN_STEPS,
+    AdamSettings,
+    TrainConfig,
+    Trainer,
+    adam_step,
+)
 
 from .conftest import SMALL, arrays, small_dataset
 
@@ -55,22 +61,47 @@ def traces(monkeypatch):
 
 def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, traces):
     """The Adam step, the validation and the quasi-Newton iteration read data, scales and keys as
-    arguments and only the fields they use as static configuration: a second run with another seed
-    and validation interval reuses all three programs (no Python trace of the loss at all)."""
+    arguments, the Adam phase's numbers too (:class:`AdamSettings`), and only what shapes a
+    program as static configuration: a second run with another seed, validation interval, number
+    of steps, learning rate and schedule, and flow penalty reuses all three programs (no Python
+    trace of the loss at all). A zero weight, which drops a loss term, is another program."""
 
-    def train(seed, val_every):
+    def train(seed, val_every, **numbers):
         config = TrainConfig(
-            steps=4, val_every=val_every, batch_size=16, lbfgs_steps=2, lbfgs_pairs=64, seed=seed
+            val_every=val_every, batch_size=16, lbfgs_steps=2, lbfgs_pairs=64, seed=seed, **numbers
         )
         tr = Trainer(config, data.train, data.val)
         state = tr.run(tr.init(fresh(data, seed)))
         tr.polish(state)
         return len(traces)
 
-    first = train(0, 2)
+    first = train(0, 2, steps=4)
     assert first > 0
-    assert train(7, 4) == first  # nothing traced again
-    assert TrainConfig(seed=1, val_every=3).only(ADAM_FIELDS) == TrainConfig().only(ADAM_FIELDS)
+    other = dict(steps=6, lr=1e-3, lr_decay=0.5, lr_boundaries=(0.2, 0.5, 0.7, 0.95))
+    assert train(7, 4, **other, lambda_flow=3e-6, flow_anneal=0.3) == first  # nothing traced again
+    structure = lambda **c: jax.tree.structure(AdamSettings.of(TrainConfig(**c)))  # noqa: E731
+    assert structure(seed=1, val_every=3, **other) == structure()
+    assert structure(w_step=0.0) != structure() and structure(lr_c_l=3.0) != structure()
+
+
+@pytest.mark.parametrize(
+    "config",
+    [
+        TrainConfig(),
+        TrainConfig(steps=2, lr_c_l=3.0),  # boundaries that fall on one step count once
+        TrainConfig(steps=7, lr_boundaries=(), flow_anneal=0.0, w_step=0.0),
+        TrainConfig(steps=1000, lr_boundaries=(0.5,), lr=1e-2, lr_decay=0.1, flow_anneal=0.3),
+    ],
+)
+def test_adam_settings_compute_the_configurations_schedule_penalty_weight_and_loss_exactly(config):
+    settings = AdamSettings.of(config)
+    edges = [int(b * config.steps) + d for b in config.lr_boundaries for d in (-1, 0, 1)]
+    for i in sorted({*range(min(config.steps + 2, 40)), *edges, config.steps - 1}):
+        count = jnp.asarray(max(i, 0), jnp.int32)
+        assert float(settings.rate(count)) == float(config.schedule()(count))
+        assert float(settings.flow_weight(count)) == float(config.flow_weight(count))
+    terms = {"deriv": jnp.asarray(0.3), "step": jnp.asarray(0.7), "flow": jnp.asarray(5.0)}
+    assert float(settings.data_loss(terms)) == float(trainer_module.data_loss(terms, config))
 
 
 def test_the_quasi_newton_step_compiles_once_per_phase(data, traces):
@@ -159,7 +190,7 @@ def test_a_format_1_run_loads_with_its_constants_and_predicts_as_it_did(tmp_path
     config = run.train_config
     tr = Trainer(config, dataset.train, dataset.val)
     args = (run.state.model, run.state.opt_state, jnp.asarray(1), tr._train, tr.scales, tr._key, None)
-    moved, opt_state, terms = adam_step(*args, config.only(ADAM_FIELDS), True)
+    moved, opt_state, terms = adam_step(*args, AdamSettings.of(config), True)
     assert terms["skipped"] == 0.0 and float(moved.eom.mass) == float(run.state.model.eom.mass)
     run.state.model, run.state.opt_state = moved, opt_state
     run.save()
@@ -181,15 +212,15 @@ def test_the_penalty_free_step_is_the_same_step_once_the_weight_is_zero(data):
     tr = Trainer(config, data.train, data.val)
     state = tr.init(fresh(data, far_field="none"))  # the whole ψ is penalised: non-zero from the start
     args = (state.model, state.opt_state, jnp.asarray(end + 3), tr._train, tr.scales, tr._key, None)
-    with_penalty = adam_step(*args, config.only(ADAM_FIELDS), True)
-    without = adam_step(*args, config.only(ADAM_FIELDS), False)
+    with_penalty = adam_step(*args, AdamSettings.of(config), True)
+    without = adam_step(*args, AdamSettings.of(config), False)
     assert "flow" in with_penalty[2] and "flow" not in without[2]
     for a, b in zip(arrays(with_penalty[:2]), arrays(without[:2]), strict=True):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-15)
     # before the end of the anneal the penalty is in the loss
     early = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key, None)
-    terms = adam_step(*early, config.only(ADAM_FIELDS), True)[2]
-    data_only = adam_step(*early, config.only(ADAM_FIELDS), False)[2]["loss"]
+    terms = adam_step(*early, AdamSettings.of(config), True)[2]
+    data_only = adam_step(*early, AdamSettings.of(config), False)[2]["loss"]
     assert float(terms["loss"] - data_only) == pytest.approx(
         config.lambda_flow * float(terms["flow"]), rel=1e-9
     )
@@ -245,7 +276,7 @@ def test_lr_c_l_scales_only_the_constant_linear_drags_step(data):
         tr = Trainer(config, data.train, data.val)
         state = tr.init(model)
         args = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key, None)
-        moved = adam_step(*args, config.only(ADAM_FIELDS), True)[0]
+        moved = adam_step(*args, AdamSettings.of(config), True)[0]
         updates[k] = jax.tree_util.tree_map(
             lambda a, b: np.asarray(a - b), eqx.filter(moved, eqx.is_array), eqx.filter(model, eqx.is_array)
         )

@@ -222,9 +222,7 @@ class TrainConfig(Config):
         return self.lambda_flow * jnp.clip(1.0 - frac, 0.0, 1.0)
 
 
-#: Fields read by the compiled Adam step and by the quasi-Newton iteration (see :meth:`TrainConfig.only`).
-ADAM_FIELDS = ("steps", "batch_size", "lr", "lr_boundaries", "lr_decay", "w_deriv", "w_step")
-ADAM_FIELDS += ("lambda_flow", "flow_anneal", "w_shoot", "lr_c_l")
+#: Fields read by the quasi-Newton iteration (see :meth:`TrainConfig.only`).
 QUASI_NEWTON_FIELDS = ("w_deriv", "w_step", "w_shoot", "lbfgs_memory")
 
 #: Adam steps without the flow penalty it takes to gain a second compiled step back: the step
@@ -259,6 +257,10 @@ def loss_terms(
     return model.loss_terms(batch, scales)
 
 
+#: The data terms whose weights the configuration sets (``w_deriv``, ``w_step``, ``w_shoot``).
+DATA_TERMS = ("deriv", "step", "shoot")
+
+
 def term_weight(name: str, config: TrainConfig) -> float:
     """The weight of data term ``name`` in the loss: ``w_deriv``, ``w_step``, ``w_shoot``, or 1
     for a model-specific objective term."""
@@ -272,6 +274,87 @@ def data_loss(terms: dict[str, Array], config: TrainConfig) -> Array:
     one-step RK4 term is ~2/3 of an FHNN step's cost)."""
     weighted = ((term_weight(k, config), v) for k, v in terms.items() if k not in REGULARIZERS)
     return sum((w * v for w, v in weighted if w), jnp.zeros(()))
+
+
+class AdamSettings(eqx.Module):
+    """The Adam phase's settings as its compiled programs read them (:func:`adam_step`,
+    :func:`adam_chunk`): its numbers — learning rate and schedule, loss weights, the penalty's
+    weight and annealing — are arrays, arguments of the program rather than constants in it, so
+    runs that differ only in them (``steps``, ``lr``, a non-zero weight; a run extended to more
+    steps) share one compiled program; what shapes the program is static: the batch size, which
+    data terms have a non-zero weight, whether the penalty anneals, whether ``c_l`` has its own
+    rate. Build it with :meth:`of`; it computes exactly what :meth:`TrainConfig.schedule`,
+    :meth:`TrainConfig.flow_weight` and :func:`data_loss` compute from the configuration."""
+
+    batch_size: int = eqx.field(static=True)
+    weighted: tuple[str, ...] = eqx.field(static=True)
+    annealed: bool = eqx.field(static=True)
+    split_c_l: bool = eqx.field(static=True)
+    lr: Array
+    thresholds: Array  # (len(lr_boundaries),) int: steps at which the rate is multiplied by ``scales``
+    scales: Array  # (len(lr_boundaries),): lr_decay; 1 for a boundary that falls on an earlier one's step
+    lr_c_l: Array
+    weights: dict[str, Array]  # data term → its weight, for the terms in ``weighted``
+    lambda_flow: Array
+    anneal_end: Array  # flow_anneal · steps
+
+    @classmethod
+    def of(cls, config: TrainConfig) -> AdamSettings:
+        # optax's piecewise-constant schedule takes {step: factor}: boundaries that fall on one
+        # step count once; a repeat keeps its place in the (static) length with factor 1
+        steps = sorted({int(b * config.steps) for b in config.lr_boundaries})
+        pad = len(config.lr_boundaries) - len(steps)
+        weights = {k: term_weight(k, config) for k in DATA_TERMS}
+        number = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
+        return cls(
+            batch_size=config.batch_size,
+            weighted=tuple(k for k, w in weights.items() if w != 0.0),
+            annealed=config.flow_anneal > 0,
+            split_c_l=config.lr_c_l != 1.0,
+            lr=number(config.lr),
+            thresholds=jnp.asarray(steps + [steps[-1] if steps else 0] * pad, dtype=int),
+            scales=number([config.lr_decay] * len(steps) + [1.0] * pad),
+            lr_c_l=number(config.lr_c_l),
+            weights={k: number(w) for k, w in weights.items() if w != 0.0},
+            lambda_flow=number(config.lambda_flow),
+            anneal_end=number(config.flow_anneal * config.steps),
+        )
+
+    def rate(self, count: Array) -> Array:
+        """The learning rate at Adam step ``count`` (optax's piecewise-constant schedule)."""
+        v = self.lr
+        for k in range(self.thresholds.shape[0]):
+            indicator = jnp.maximum(0.0, jnp.sign(self.thresholds[k] - count))
+            v = v * indicator + (1 - indicator) * self.scales[k] * v
+        return v
+
+    def optimizer(self) -> optax.GradientTransformation:
+        """Adam at :meth:`rate`; with ``lr_c_l ≠ 1`` the parameters named ``c_l_raw`` (a constant
+        linear drag) step at ``lr_c_l`` times that rate."""
+        if not self.split_c_l:
+            return optax.adam(self.rate)
+        fast = optax.adam(lambda i: self.lr_c_l * self.rate(i))
+        # a model without c_l_raw (a baseline, linear_drag="net") has every leaf in "rest"
+        return optax.multi_transform({"rest": optax.adam(self.rate), "c_l": fast}, _c_l_labels)
+
+    def flow_weight(self, step: Array) -> Array:
+        """The flow penalty's weight at Adam step ``step``."""
+        if not self.annealed:
+            return jnp.asarray(0.0)
+        return self.lambda_flow * jnp.clip(1.0 - step / self.anneal_end, 0.0, 1.0)
+
+    def counts(self, name: str) -> bool:
+        """Whether data term ``name`` enters the loss (a model-specific objective term always does)."""
+        return name in self.weighted or name not in DATA_TERMS
+
+    def data_loss(self, terms: dict[str, Array]) -> Array:
+        """:func:`data_loss` with these weights: terms of weight 0 are left out, not multiplied by 0."""
+        weighted = (
+            (self.weights[k] if k in DATA_TERMS else 1.0, v)
+            for k, v in terms.items()
+            if k not in REGULARIZERS and self.counts(k)
+        )
+        return sum((w * v for w, v in weighted), jnp.zeros(()))
 
 
 @dataclass
@@ -597,12 +680,7 @@ class Trainer:
     def optimizer_for(config: TrainConfig) -> optax.GradientTransformation:
         """Adam with the configuration's piecewise-constant learning rate; with ``lr_c_l ≠ 1`` the
         parameters named ``c_l_raw`` (a constant linear drag) step at ``lr_c_l`` times that rate."""
-        rate = config.schedule()
-        if config.lr_c_l == 1.0:
-            return optax.adam(rate)
-        fast = optax.adam(lambda i: config.lr_c_l * rate(i))
-        # a model without c_l_raw (a baseline, linear_drag="net") has every leaf in "rest"
-        return optax.multi_transform({"rest": optax.adam(rate), "c_l": fast}, _c_l_labels)
+        return AdamSettings.of(config).optimizer()
 
     def init(self, model: AbstractModel) -> TrainState:
         opt_state = self.optimizer.init(eqx.filter(model, eqx.is_array))
@@ -638,9 +716,11 @@ class Trainer:
 
 
 # The compiled programs of training. They are module-level functions whose data, scales and keys
-# are arguments (not closed-over constants) and whose configuration is a static, hashable argument,
-# so a program is traced once per shape and configuration in a process, and the persistent
-# compilation cache (:func:`fhnn.runtime.use_compilation_cache`) serves it to later processes.
+# are arguments (not closed-over constants), as are the Adam phase's numbers (:class:`AdamSettings`);
+# what shapes a program (the batch size, the terms in the loss, the quasi-Newton configuration) is
+# a static, hashable argument. So a program is traced once per shape and structure in a process,
+# and the persistent compilation cache (:func:`fhnn.runtime.use_compilation_cache`) and the
+# stored executables (:mod:`fhnn.executables`) serve it to later processes.
 
 
 @eqx.filter_jit
@@ -656,35 +736,31 @@ def _adam_step(
     scales: tuple[Array, Array],
     key: Array,
     weights: Array | None,
-    config: TrainConfig,
+    settings: AdamSettings,
     regularize: bool,
 ) -> tuple[AbstractModel, Any, dict[str, Array]]:
-    """Adam step ``i`` on a minibatch of ``config.batch_size`` pairs drawn from ``data`` with
+    """Adam step ``i`` on a minibatch of ``settings.batch_size`` pairs drawn from ``data`` with
     ``fold_in(key, i)``: uniformly, or with probabilities in proportion to ``weights`` ``(P,)``
     (a bootstrap resample, see ``TrainConfig.bootstrap``; a window of weight 0 is never drawn).
     ``regularize`` (static): include the flow penalty at its annealed weight (False once that
     weight is zero: the penalty is then neither computed nor logged). A non-finite loss or gradient
     leaves model and optimiser state unchanged (``"skipped": 1``)."""
     n = next(iter(data.values())).shape[0]
-    idx = draw_batch(jax.random.fold_in(key, i), n, config.batch_size, weights)
+    idx = draw_batch(jax.random.fold_in(key, i), n, settings.batch_size, weights)
     batch = {k: v[idx] for k, v in data.items()}
     batch["key"] = jax.random.fold_in(jax.random.fold_in(key, i), 1)
-    weight = config.flow_weight(i)
+    weight = settings.flow_weight(i)
 
     def total(m: AbstractModel) -> tuple[Array, dict[str, Array]]:
         terms = loss_terms(m, batch, scales)
         # dropped terms (the penalty once its weight is zero, data terms of weight zero) are
         # outputs of nothing: XLA removes their computation
-        terms = {
-            k: v
-            for k, v in terms.items()
-            if (regularize if k in REGULARIZERS else term_weight(k, config) != 0.0)
-        }
+        terms = {k: v for k, v in terms.items() if (regularize if k in REGULARIZERS else settings.counts(k))}
         reg = sum((terms[k] for k in REGULARIZERS if k in terms), jnp.zeros(()))
-        loss = data_loss(terms, config) + weight * reg
+        loss = settings.data_loss(terms) + weight * reg
         return loss, {**terms, "loss": loss}
 
-    optimizer = Trainer.optimizer_for(config)
+    optimizer = settings.optimizer()
     grads, terms = eqx.filter_grad(total, has_aux=True)(model)
     updates, new_state = optimizer.update(grads, opt_state, eqx.filter(model, eqx.is_array))
     # a non-finite loss or gradient (e.g. an LNN's singular Hessian) skips the step instead of
@@ -724,7 +800,7 @@ def _adam_chunk(
     scales: tuple[Array, Array],
     key: Array,
     weights: Array | None,
-    config: TrainConfig,
+    settings: AdamSettings,
     regularize: bool,
     stacked: bool = False,
 ) -> tuple[AbstractModel, Any, dict[str, Array]]:
@@ -739,11 +815,12 @@ def _adam_chunk(
     ``opt_state``, ``key`` ``(K, 2)`` and ``weights`` ``(K, P)`` (or None) hold the members'
     arrays stacked on a leading axis (:func:`stack`), and so do the outputs (each loss term
     ``(K,)``). The members share the data, the steps and the configuration; each draws its own
-    minibatches from its own key and weights, as it would alone."""
+    minibatches from its own key and weights, as it would alone. ``settings`` is shared: the
+    members' configurations are equal but for the seed."""
     if stacked:
 
         def member(m: AbstractModel, o: Any, k: Array, w: Array | None) -> tuple:
-            return _adam_chunk(m, o, i, n, data, scales, k, w, config, regularize)
+            return _adam_chunk(m, o, i, n, data, scales, k, w, settings, regularize)
 
         axes = (eqx.if_array(0), eqx.if_array(0), 0, eqx.if_array(0))
         return eqx.filter_vmap(member, in_axes=axes)(model, opt_state, key, weights)
@@ -751,7 +828,7 @@ def _adam_chunk(
 
     def step(k: Array, p: Any, o: Any) -> tuple[Any, Any, dict[str, Array]]:
         model = eqx.combine(p, static)
-        m, o, terms = _adam_step(model, o, i + k, data, scales, key, weights, config, regularize)
+        m, o, terms = _adam_step(model, o, i + k, data, scales, key, weights, settings, regularize)
         return eqx.filter(m, eqx.is_array), o, terms
 
     shapes = jax.eval_shape(step, jnp.asarray(0), params, opt_state)[2]
@@ -837,7 +914,7 @@ def _adam_phase(
     between which it validates, checkpoints, reports progress and looks at the time budget; the
     states are updated in place."""
     cfg = trainers[0].config
-    adam_cfg = cfg.only(ADAM_FIELDS)
+    settings = AdamSettings.of(cfg)
     data, scales = trainers[0]._train, trainers[0].scales
     alone = len(trainers) == 1
     member = (lambda tree, pos: tree) if alone else take
@@ -871,7 +948,7 @@ def _adam_phase(
             scales,
             keys,
             weights,
-            adam_cfg,
+            settings,
             regularize,
             not alone,
         )
