@@ -28,7 +28,7 @@
 Usage::
 
     python benchmarks/training_speed.py [--seeds 3] [--targets] [--out DIR]
-                                        [--ensemble [--ensemble-train JSON]]
+                                        [--ensemble [--ensemble-train JSON]] [--ensemble-only]
 """
 
 from __future__ import annotations
@@ -347,18 +347,24 @@ def main() -> None:
         default={},
         help="JSON of train.* changes for --ensemble (e.g. '{\"steps\": 2000}' for a quick check)",
     )
+    p.add_argument(
+        "--ensemble-only",
+        action="store_true",
+        help="only section 5 (--ensemble), for a machine whose sections 1-4 are measured already",
+    )
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     print(
         f"fhnn {fhnn.__version__}, jax {jax.__version__}, {jax.devices()[0].platform}, {os.cpu_count()} CPUs"
     )
-    ds, path = dataset("solid_body_vortex", args.out)
-    phases(ds)
-    compile_times(ds, path)
-    seeds_as_one(ds, args.seeds)
-    if args.targets:
-        to_targets(args.out)
-    if args.ensemble:
+    if not args.ensemble_only:
+        ds, path = dataset("solid_body_vortex", args.out)
+        phases(ds)
+        compile_times(ds, path)
+        seeds_as_one(ds, args.seeds)
+        if args.targets:
+            to_targets(args.out)
+    if args.ensemble or args.ensemble_only:
         ensemble_end_to_end(args.out, args.seeds, args.ensemble_train)
 
 
