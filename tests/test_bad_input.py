@@ -42,6 +42,8 @@ def ws(tmp_path_factory: pytest.TempPathFactory) -> Path:
                     "--steps",
                     "4",
                     "-q",
+                    # the FHNN of test_first_use's and test_faults' runs: one compiled program
+                    *(["--set", "model.width=8"] if model == "fhnn" else []),
                 ]
             )
         assert info.value.code == 0

@@ -33,7 +33,9 @@ def run(argv, capsys):
 @pytest.fixture(scope="module")
 def ensemble(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("ens")
-    write_dataset(small_dataset("steady_vortex", n_traj=6, duration=2.0), folder / "data.h5")
+    # test_first_use's data set: its evaluation's rollouts are the same programs
+    data = small_dataset("steady_vortex", n_traj=6, duration=2.0, test_duration=3.0)
+    write_dataset(data, folder / "data.h5")
     with pytest.raises(SystemExit) as info:
         main(["train", str(folder / "data.h5"), "-o", str(folder / "ens"), "--seeds", "3", *TRAIN])
     assert info.value.code == 0
