@@ -1,5 +1,6 @@
 """The trainer's compiled programs: traced once per shape and structure (the Adam phase's numbers
-are arguments), the penalty-free Adam step, the warm-up part without the stream MLP, and the commands' compilation cache folder."""
+are arguments), the penalty-free Adam step, the warm-up part without the stream MLP, and the
+commands' compilation cache folder."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
 
 import fhnn.executables as executables
@@ -94,12 +96,19 @@ def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, traces):
     ],
 )
 def test_adam_settings_compute_the_configurations_schedule_penalty_weight_and_loss_exactly(config):
+    """The learning rate is optax's piecewise-constant schedule of the configuration, bit for bit;
+    the penalty's weight decays linearly from ``lambda_flow`` to 0 over ``flow_anneal`` of the steps."""
     settings = AdamSettings.of(config)
+    schedule = optax.piecewise_constant_schedule(
+        config.lr, {int(b * config.steps): config.lr_decay for b in config.lr_boundaries}
+    )
+    end = config.flow_anneal * config.steps
     edges = [int(b * config.steps) + d for b in config.lr_boundaries for d in (-1, 0, 1)]
     for i in sorted({*range(min(config.steps + 2, 40)), *edges, config.steps - 1}):
         count = jnp.asarray(max(i, 0), jnp.int32)
-        assert float(settings.rate(count)) == float(config.schedule()(count))
-        assert float(settings.flow_weight(count)) == float(config.flow_weight(count))
+        assert float(settings.rate(count)) == float(schedule(count))
+        weight = config.lambda_flow * min(max(1.0 - max(i, 0) / end, 0.0), 1.0) if end > 0 else 0.0
+        assert float(settings.flow_weight(count)) == weight
     terms = {"deriv": jnp.asarray(0.3), "step": jnp.asarray(0.7), "flow": jnp.asarray(5.0)}
     assert float(settings.data_loss(terms)) == float(trainer_module.data_loss(terms, config))
 

@@ -195,10 +195,6 @@ class TrainConfig(Config):
         the multi-step loss (``shoot ≥ 3``), else 0."""
         return self.shoot_skip if self.shoot >= 3 else 0
 
-    def schedule(self) -> optax.Schedule:
-        bounds = {int(b * self.steps): self.lr_decay for b in self.lr_boundaries}
-        return optax.piecewise_constant_schedule(self.lr, bounds)
-
     def only(self, fields: tuple[str, ...]) -> TrainConfig:
         """This configuration with every field but ``fields`` at its default: the static argument
         of a compiled program that reads only ``fields``, so runs differing elsewhere (the seed,
@@ -214,12 +210,6 @@ class TrainConfig(Config):
             return False
         end = self.flow_anneal * self.steps
         return step < end or self.steps - end < PENALTY_FREE_MIN_STEPS
-
-    def flow_weight(self, step: Array) -> Array:
-        if self.flow_anneal <= 0:
-            return jnp.asarray(0.0)
-        frac = step / (self.flow_anneal * self.steps)
-        return self.lambda_flow * jnp.clip(1.0 - frac, 0.0, 1.0)
 
 
 #: Fields read by the quasi-Newton iteration (see :meth:`TrainConfig.only`).
@@ -283,8 +273,10 @@ class AdamSettings(eqx.Module):
     runs that differ only in them (``steps``, ``lr``, a non-zero weight; a run extended to more
     steps) share one compiled program; what shapes the program is static: the batch size, which
     data terms have a non-zero weight, whether the penalty anneals, whether ``c_l`` has its own
-    rate. Build it with :meth:`of`; it computes exactly what :meth:`TrainConfig.schedule`,
-    :meth:`TrainConfig.flow_weight` and :func:`data_loss` compute from the configuration."""
+    rate. Build it with :meth:`of`. The learning rate is optax's piecewise-constant schedule of
+    ``lr`` ×``lr_decay`` at each ``lr_boundaries`` fraction of ``steps``, the penalty's weight
+    ``lambda_flow`` decaying linearly to 0 over the first ``flow_anneal`` of the steps, the data loss
+    :func:`data_loss`."""
 
     batch_size: int = eqx.field(static=True)
     weighted: tuple[str, ...] = eqx.field(static=True)
@@ -312,7 +304,7 @@ class AdamSettings(eqx.Module):
             annealed=config.flow_anneal > 0,
             split_c_l=config.lr_c_l != 1.0,
             lr=number(config.lr),
-            thresholds=jnp.asarray(steps + [steps[-1] if steps else 0] * pad, dtype=int),
+            thresholds=jnp.asarray(steps + steps[-1:] * pad, dtype=int),
             scales=number([config.lr_decay] * len(steps) + [1.0] * pad),
             lr_c_l=number(config.lr_c_l),
             weights={k: number(w) for k, w in weights.items() if w != 0.0},
@@ -969,7 +961,7 @@ def _adam_phase(
             trainer, state = trainers[j], states[j]
             late = None if done == cfg.steps else trainer._over_budget("adam", done, cfg.steps, "Adam")
             if done % cfg.val_every == 0 or done == cfg.steps or late is not None:
-                record = adam_record(cfg, done - 1, member(last, pos), skipped[pos])
+                record = adam_record(settings, done - 1, member(last, pos), skipped[pos])
                 skipped = skipped.at[pos].set(0.0)
                 state.opt_state, state.skipped = member(opts, pos), 0.0
                 if trainer._record(state, member(models, pos), record, callbacks[j], stop=cfg, late=late):
@@ -1012,15 +1004,15 @@ def adam_chunk_end(
     return next((k for k in range(i + 1, end) if config.regularizes(k) != regularize), end)
 
 
-def adam_record(config: TrainConfig, i: int, terms: dict[str, Array], skipped: Array) -> dict[str, Any]:
+def adam_record(settings: AdamSettings, i: int, terms: dict[str, Array], skipped: Array) -> dict[str, Any]:
     """The history record after Adam step ``i`` (0-based): the step count, the step's loss terms
     (``train_*``), the steps skipped since the previous record (non-finite loss), the learning
     rate and the penalty's weight at the step."""
     record: dict[str, Any] = {"step": i + 1}
     record.update({f"train_{k}": float(v) for k, v in terms.items() if k != "skipped"})
     record["skipped_steps"] = float(skipped)
-    record["lr"] = float(config.schedule()(i))
-    record["lambda_flow"] = float(config.flow_weight(jnp.asarray(i)))
+    record["lr"] = float(settings.rate(jnp.asarray(i)))
+    record["lambda_flow"] = float(settings.flow_weight(jnp.asarray(i)))
     return record
 
 
