@@ -54,7 +54,8 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 #: workers finish together rather than one waiting on a long test that started last.
 LONGEST_FIRST = (
     "test_faults.py::test_reproduction_killed_three_times",
-    "test_reproduce.py::test_ray_cluster_gives_the_numbers_of_the_local_executor",
+    "test_executables.py::test_a_new_process_trains_from_the_stored_programs",
+    "test_import.py::test_train_evaluate_inspect_on_imported_data",
     "test_baselines.py::test_dissipative_hnn_fits",
     "test_faults.py::test_training_killed_in_every_phase",
     "test_faults.py::test_simulate_killed",

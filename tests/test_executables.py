@@ -19,7 +19,10 @@ import numpy as np
 import pytest
 
 import fhnn.executables as executables
+from fhnn.data.dataset import write_dataset
+from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.executables import StoredProgram
+from fhnn.physics.scenarios import get_scenario
 
 TRACES: list[int] = []
 
@@ -178,13 +181,11 @@ import jax, numpy as np
 import equinox as eqx
 from fhnn.runtime import use_compilation_cache
 use_compilation_cache(sys.argv[1])
-from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.data.dataset import read_dataset
 from fhnn.models.fhnn import FHNNConfig
 from fhnn.models.registry import MODELS
-from fhnn.physics.scenarios import get_scenario
 from fhnn.training.trainer import TrainConfig, Trainer
-sc = get_scenario("steady_vortex")
-data = simulate_dataset(sc, SimulationConfig.for_scenario(sc, n_traj=4, duration=1.0, test_duration=1.0, dt=0.1))
+data = read_dataset(sys.argv[2])
 kind = MODELS["fhnn"]
 model = kind.make(FHNNConfig(width=8, depth=2), kind.arguments(data), 0)
 tr = Trainer(TrainConfig(steps=3, val_every=3, batch_size=8, lbfgs_steps=5, lbfgs_pairs=16), data.train, data.val)
@@ -203,11 +204,20 @@ def test_a_new_process_trains_from_the_stored_programs_to_the_same_weights(tmp_p
     whose stored program takes its state by donation) with one cache folder: the first compiles
     and stores the trainer's programs, the second loads every one of them, and both end at the
     weights of a third process that runs the plain jitted programs (no store, nothing donated)."""
+    sc = get_scenario("steady_vortex")
+    data = tmp_path / "data.h5"
+    write_dataset(
+        simulate_dataset(
+            sc, SimulationConfig.for_scenario(sc, n_traj=4, duration=1.0, test_duration=1.0, dt=0.1)
+        ),
+        data,
+    )
+    cache = tmp_path / "cache"
     runs = []
     for seed, store in (("1", "on"), ("2", "on"), ("3", "off")):
         env = {**os.environ, "PYTHONHASHSEED": seed, executables.STORE_ENV: store}
         done = subprocess.run(
-            [sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, env=env
+            [sys.executable, "-c", SCRIPT, str(cache), str(data)], capture_output=True, text=True, env=env
         )
         assert done.returncode == 0, done.stderr[-2000:]
         runs.append(json.loads(done.stdout.splitlines()[-1]))
@@ -215,7 +225,7 @@ def test_a_new_process_trains_from_the_stored_programs_to_the_same_weights(tmp_p
     assert first["stored"] >= 3 and first["loaded"] == 0  # the Adam chunk, validation, L-BFGS
     assert second == {"stored": 0, "loaded": first["stored"], "weights": first["weights"]}
     assert plain == {"stored": 0, "loaded": 0, "weights": first["weights"]}
-    assert len(list(Path(tmp_path, executables.FOLDER).iterdir())) == first["stored"]
+    assert len(list(Path(cache, executables.FOLDER).iterdir())) == first["stored"]
 
 
 def test_the_store_follows_the_cache_folder_and_can_be_turned_off(tmp_path, monkeypatch):
