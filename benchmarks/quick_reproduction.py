@@ -19,9 +19,15 @@ With ``--seeds N`` it times the reproduction's seed axis instead: ``--quick --se
 job per seed and with each cell's seeds as one task (``--set seeds_together=true``), their ratio,
 and how far the two runs' validation losses part.
 
+With ``--ray`` it runs ``--quick`` on the local executor and as Ray tasks on a cluster it starts
+(``--ray local``; needs ``pip install 'fhnn[ray]'``), each with an empty compilation cache, and
+checks that every job's metrics are bitwise those of the local run (both compile with
+``fast_compile``'s XLA flags) and both reports pass; it stands in for the slow test
+``tests/test_reproduce.py::test_ray_cluster_gives_the_numbers_of_the_local_executor``.
+
 Usage::
 
-    python benchmarks/quick_reproduction.py [--workers N] [--out DIR] [--seeds N]
+    python benchmarks/quick_reproduction.py [--workers N] [--out DIR] [--seeds N | --ray]
 """
 
 from __future__ import annotations
@@ -123,17 +129,50 @@ def seed_axis(base: Path, workers: int | None, seeds: int) -> list[str]:
     return check_report(base / "apart") + check_report(base / "together")
 
 
+def ray_executor(base: Path, workers: int | None) -> list[str]:
+    """Time ``--quick`` on the local executor and on a Ray cluster started for it, and compare
+    every job's metrics bitwise. Returns what differs or fails the report checks."""
+    times = {}
+    for name, extra in (("local", ()), ("ray", ("--ray", "local"))):
+        shutil.rmtree(base / name, ignore_errors=True)
+        shutil.rmtree(base / f"jax-cache-{name}", ignore_errors=True)
+        times[name] = run_quick(base / name, base / f"jax-cache-{name}", None if extra else workers, *extra)
+    metrics = {
+        name: {
+            p.parent.name: json.dumps(json.loads(p.read_text())["spec_metrics"], sort_keys=True)
+            for p in sorted((base / name / "jobs").glob("*/result.json"))
+        }
+        for name in times
+    }
+    print("fhnn reproduce --quick, cold compilation cache")
+    print(f"  local executor          {times['local']:6.1f} s")
+    print(f"  Ray tasks (--ray local) {times['ray']:6.1f} s")
+    differ = [job for job in metrics["local"] if metrics["ray"].get(job) != metrics["local"][job]]
+    if list(metrics["local"]) != list(metrics["ray"]):
+        differ.append(f"jobs differ: {sorted(set(metrics['local']) ^ set(metrics['ray']))}")
+    print(
+        f"  {len(metrics['local'])} jobs: metrics bitwise the same"
+        if not differ
+        else f"  FAILED: metrics differ for {differ}"
+    )
+    return differ + check_report(base / "local") + check_report(base / "ray")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--workers", type=int, default=None, help="as for fhnn reproduce (default: one per core)")
     p.add_argument("--out", type=Path, default=None, help="keep the two reproductions here")
     p.add_argument("--seeds", type=int, default=None, help="time the seed axis: N seeds apart and together")
+    p.add_argument("--ray", action="store_true", help="the local executor against Ray tasks, bitwise")
     args = p.parse_args()
     base = Path(tempfile.mkdtemp(prefix="fhnn-quick-")) if args.out is None else args.out
     base.mkdir(parents=True, exist_ok=True)
-    if args.seeds is not None:
+    if args.seeds is not None or args.ray:
         print(f"fhnn {fhnn.__version__}, {os.cpu_count()} CPUs, workers {args.workers or 'one per core'}")
-        missing = seed_axis(base, args.workers, args.seeds)
+        if args.ray:
+            missing = ray_executor(base, args.workers)
+        else:
+            missing = seed_axis(base, args.workers, args.seeds)
         print("  reports: every check passed" if not missing else f"  reports: FAILED {missing}")
         if args.out is None:
             shutil.rmtree(base, ignore_errors=True)
