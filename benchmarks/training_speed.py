@@ -29,6 +29,7 @@ Usage::
 
     python benchmarks/training_speed.py [--seeds 3] [--targets] [--out DIR]
                                         [--ensemble [--ensemble-train JSON]] [--ensemble-only]
+                                        [--rollout-only]
 """
 
 from __future__ import annotations
@@ -169,6 +170,48 @@ def compile_times(ds, path: Path) -> None:
     print(f"  second job, same process (seed 5)          {same:6.2f} s")
     print(f"  second job, new process, stored executable {runs[1]:6.2f} s  (target < 1 s)")
     print(f"  second job, new process, traced, JAX cache {runs[3]:6.2f} s  (ratio {runs[3] / runs[1]:.1f})")
+    rollout_compile_times(path)
+
+
+#: A new process's first rollout of a model over 5 s of the test split (what ``fhnn evaluate``
+#: runs), in seconds less the same rollout compiled; ``$EQX_ON_ERROR`` as the caller sets it.
+_ROLLOUT = (
+    "import sys, time; sys.path.insert(0, 'benchmarks'); from fhnn.runtime import use_compilation_cache;"
+    "use_compilation_cache(sys.argv[1]); from _common import seconds_per_call;"
+    "from fhnn.data.dataset import read_dataset; from fhnn.models.registry import MODELS;"
+    "from fhnn.training.run import RunConfig;"
+    "ds = read_dataset(sys.argv[2]); kind = MODELS['fhnn'];"
+    "m = kind.make(RunConfig().model, kind.arguments(ds), 0); sp = ds.test; t = sp.t[..., :101];"
+    "t0 = time.perf_counter(); m.predict(sp.states, sp, t, 1e-10, 1e-10); first = time.perf_counter() - t0;"
+    "print(first - seconds_per_call(lambda: m.predict(sp.states, sp, t, 1e-10, 1e-10), 2))"
+)
+
+
+def rollout_compile_times(path: Path) -> None:
+    """A rollout's compilation (5 s of the test split, the FHNN defaults) in a first and a second
+    process sharing a compilation cache folder, with Equinox's default for its runtime checks
+    (``EQX_ON_ERROR=raise``: Diffrax's checks call back into Python, and JAX keeps no program that
+    does) and with fhnn's (``nan``, :data:`fhnn.runtime.EQX_ON_ERROR_DEFAULT`)."""
+    print("   a rollout (5 s of the test split, FHNN defaults): its first call less a compiled call")
+    for mode in ("raise", "nan"):
+        with tempfile.TemporaryDirectory() as cache:
+            env = {**os.environ, "EQX_ON_ERROR": mode}
+            first, second = (
+                float(
+                    subprocess.run(
+                        [sys.executable, "-c", _ROLLOUT, cache, str(path)],
+                        capture_output=True,
+                        text=True,
+                        env=env,
+                        check=True,
+                    ).stdout.split()[-1]
+                )
+                for _ in range(2)
+            )
+        print(
+            f"  EQX_ON_ERROR={mode:5s}  first process {first:6.2f} s, second process {second:6.2f} s "
+            f"(ratio {second / first:.2f})"
+        )
 
 
 def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:
@@ -352,11 +395,17 @@ def main() -> None:
         action="store_true",
         help="only section 5 (--ensemble), for a machine whose sections 1-4 are measured already",
     )
+    p.add_argument(
+        "--rollout-only", action="store_true", help="only the rollout's compilation (end of section 2)"
+    )
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     print(
         f"fhnn {fhnn.__version__}, jax {jax.__version__}, {jax.devices()[0].platform}, {os.cpu_count()} CPUs"
     )
+    if args.rollout_only:
+        rollout_compile_times(dataset("solid_body_vortex", args.out)[1])
+        return
     if not args.ensemble_only:
         ds, path = dataset("solid_body_vortex", args.out)
         phases(ds)

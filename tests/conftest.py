@@ -9,6 +9,11 @@ subprocesses) use the same folder through ``$FHNN_JAX_CACHE``.
 
 from __future__ import annotations
 
+# isort: off
+import fhnn  # noqa: F401  (first of all: float64, and Equinox's runtime checks as NaN, fhnn.runtime)
+
+# isort: on
+
 import atexit
 import os
 import shutil
@@ -20,7 +25,6 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
-import fhnn  # noqa: F401  (enables float64)
 from fhnn.data.dataset import Dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import SCENARIOS, get_scenario

@@ -20,7 +20,8 @@ Arrays are the program's arguments; everything else is part of the key. The wrap
 called as it is — no file written or read — when no compilation cache folder is set, inside a
 traced program, when a signature cannot be keyed (a non-array argument that cannot be pickled, a
 function with a closure), when its output holds a function made inside it, or when it cannot be
-exported (host callbacks such as Diffrax's error checks: the rollouts).
+exported (host callbacks, such as Equinox's runtime checks under ``EQX_ON_ERROR=raise``:
+:mod:`fhnn.runtime`).
 A stored file that cannot be read or compiled is deleted and the program exported again.
 
 (Serialized XLA executables, :mod:`jax.experimental.serialize_executable`, were tried first: they

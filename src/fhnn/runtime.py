@@ -1,7 +1,10 @@
-"""Process-wide settings, in one place: the package version, float64 and the compilation cache.
+"""Process-wide settings, in one place: the package version, float64, Equinox's runtime checks and
+the compilation cache.
 
 JAX's settings are global to a process. Importing :mod:`fhnn` (which imports this module first)
-switches JAX to float64, so every computation of the package runs in double precision;
+switches JAX to float64, so every computation of the package runs in double precision, and, unless
+``$EQX_ON_ERROR`` is set, sets it to ``nan`` before Equinox is imported
+(:data:`EQX_ON_ERROR_DEFAULT`);
 :func:`use_compilation_cache` points JAX's persistent compilation cache at a folder, so a program
 compiled once (a training step, a rollout) is loaded, not compiled again, by later jobs and
 processes that share the folder. Every ``fhnn`` command uses the folder
@@ -19,7 +22,17 @@ import os
 from importlib import metadata as _metadata
 from pathlib import Path
 
-import jax
+#: Equinox's runtime checks (``eqx.error_if``: Diffrax checks a solve's output times with them)
+#: call back into Python from compiled code when ``$EQX_ON_ERROR`` is ``raise``, Equinox's default,
+#: and JAX neither caches nor exports a program that calls back: every process compiled every
+#: rollout and simulation again. With ``nan`` a failed check gives NaN instead, which the rollouts
+#: report as a failed trajectory (:func:`fhnn.physics.integrators.adaptive_solve`); fhnn's own code
+#: makes no such check, and its training programs hold none. Set only where the variable is unset,
+#: and effective only where Equinox is not imported yet (the rollouts then compile in each process).
+EQX_ON_ERROR_DEFAULT = "nan"
+os.environ.setdefault("EQX_ON_ERROR", EQX_ON_ERROR_DEFAULT)
+
+import jax  # noqa: E402  (after the Equinox setting, which Equinox reads once, on import)
 
 jax.config.update("jax_enable_x64", True)
 
