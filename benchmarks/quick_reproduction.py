@@ -147,11 +147,10 @@ def ray_executor(base: Path, workers: int | None) -> list[str]:
     print("fhnn reproduce --quick, cold compilation cache")
     print(f"  local executor          {times['local']:6.1f} s")
     print(f"  Ray tasks (--ray local) {times['ray']:6.1f} s")
-    differ = [job for job in metrics["local"] if metrics["ray"].get(job) != metrics["local"][job]]
-    if list(metrics["local"]) != list(metrics["ray"]):
-        differ.append(f"jobs differ: {sorted(set(metrics['local']) ^ set(metrics['ray']))}")
+    local, ray = metrics["local"], metrics["ray"]
+    differ = sorted(job for job in local.keys() | ray.keys() if local.get(job) != ray.get(job))
     print(
-        f"  {len(metrics['local'])} jobs: metrics bitwise the same"
+        f"  {len(local)} jobs: metrics bitwise the same"
         if not differ
         else f"  FAILED: metrics differ for {differ}"
     )
