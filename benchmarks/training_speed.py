@@ -11,7 +11,8 @@
    process sharing the compilation cache folder (what every ``fhnn`` command uses): the step as the
    trainer runs it, read untraced from the executable the first job stored
    (:mod:`fhnn.executables`), against the plain jitted step, traced and looked up in JAX's
-   persistent cache.
+   persistent cache. Then a rollout's compilation in a first and a second process: stored
+   (:mod:`fhnn.executables`), traced, and traced under Equinox's default runtime checks.
 3. Seeds trained as one program: ``N`` models stacked and one ``vmap``-ed chunk of Adam steps (the
    program the trainer runs), against ``N`` sequential chunks (throughput ratio, per step), for
    the step with every loss term and the flow penalty and for the step ``fhnn train`` runs (the
@@ -50,7 +51,7 @@ import numpy as np
 from _common import dataset, seconds_per_call
 
 import fhnn
-from fhnn.executables import StoredProgram
+from fhnn.executables import STORE_ENV, StoredProgram
 from fhnn.models.registry import MODELS
 from fhnn.runtime import use_compilation_cache
 from fhnn.training.plans import DEFAULT_PLAN, PLANS
@@ -174,7 +175,8 @@ def compile_times(ds, path: Path) -> None:
 
 
 #: A new process's first rollout of a model over 5 s of the test split (what ``fhnn evaluate``
-#: runs), in seconds less the same rollout compiled; ``$EQX_ON_ERROR`` as the caller sets it.
+#: runs), in seconds less the same rollout compiled; ``$EQX_ON_ERROR`` and ``$FHNN_EXECUTABLES`` as
+#: the caller sets them.
 _ROLLOUT = (
     "import sys, time; sys.path.insert(0, 'benchmarks'); from fhnn.runtime import use_compilation_cache;"
     "use_compilation_cache(sys.argv[1]); from _common import seconds_per_call;"
@@ -189,14 +191,22 @@ _ROLLOUT = (
 
 def rollout_compile_times(path: Path) -> None:
     """A rollout's compilation (5 s of the test split, the FHNN defaults) in a first and a second
-    process sharing a compilation cache folder, with Equinox's default for its runtime checks
-    (``EQX_ON_ERROR=raise``: Diffrax's checks call back into Python, and JAX keeps no program that
-    does) and with fhnn's (``nan``, :data:`fhnn.runtime.EQX_ON_ERROR_DEFAULT`)."""
+    process sharing a compilation cache folder: as fhnn runs it (``EQX_ON_ERROR=nan``,
+    :data:`fhnn.runtime.EQX_ON_ERROR_DEFAULT`, and the rollout a
+    :class:`~fhnn.executables.StoredProgram`, which a later process runs untraced), with the store
+    off (``FHNN_EXECUTABLES=off``: traced in every process, its compilation from JAX's cache), and
+    with Equinox's default for its runtime checks as well (``EQX_ON_ERROR=raise``: Diffrax's checks
+    call back into Python, and JAX neither caches nor exports a program that does)."""
     print("   a rollout (5 s of the test split, FHNN defaults): its first call less a compiled call")
-    for mode in ("raise", "nan"):
+    rows = {}
+    for label, mode, store in (
+        ("fhnn (stored)", "nan", "on"),
+        ("store off", "nan", "off"),
+        ("store off, raise", "raise", "off"),
+    ):
         with tempfile.TemporaryDirectory() as cache:
-            env = {**os.environ, "EQX_ON_ERROR": mode}
-            first, second = (
+            env = {**os.environ, "EQX_ON_ERROR": mode, STORE_ENV: store}
+            rows[label] = first, second = [
                 float(
                     subprocess.run(
                         [sys.executable, "-c", _ROLLOUT, cache, str(path)],
@@ -207,11 +217,17 @@ def rollout_compile_times(path: Path) -> None:
                     ).stdout.split()[-1]
                 )
                 for _ in range(2)
-            )
+            ]
         print(
-            f"  EQX_ON_ERROR={mode:5s}  first process {first:6.2f} s, second process {second:6.2f} s "
-            f"(ratio {second / first:.2f})"
+            f"  {label:17s} (EQX_ON_ERROR={mode:5s})  first process {first:6.2f} s, "
+            f"second process {second:6.2f} s"
         )
+    stored = rows["fhnn (stored)"][1]
+    print(
+        f"  second process, stored against traced: {stored:.2f} s against {rows['store off'][1]:.2f} s "
+        f"(ratio {rows['store off'][1] / stored:.1f}); against Equinox's default: "
+        f"{rows['store off, raise'][1]:.2f} s (ratio {rows['store off, raise'][1] / stored:.1f})"
+    )
 
 
 def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:

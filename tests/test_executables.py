@@ -154,8 +154,12 @@ def test_what_has_no_stable_key_is_called_as_it_is(store, tmp_path, monkeypatch)
 
     x = jnp.arange(3.0)
     unkeyed = StoredProgram(apply)
-    np.testing.assert_array_equal(np.asarray(unkeyed(shifted, x)), [0.5, 1.5, 2.5])
-    assert unkeyed.stored == 0 and list(store.iterdir()) == []
+    tries = []
+    prepare = StoredProgram._prepare
+    monkeypatch.setattr(StoredProgram, "_prepare", lambda self, *a: tries.append(1) or prepare(self, *a))
+    for other in (x, x + 1.0, jnp.arange(4.0), x):  # the signature's failure is remembered
+        np.testing.assert_array_equal(np.asarray(unkeyed(shifted, other)), np.asarray(other + 0.5))
+    assert unkeyed.stored == 0 and list(store.iterdir()) == [] and len(tries) == 2
     for k in (1.0, 2.0):  # a program that is itself a closure: two of one name compute differently
 
         @eqx.filter_jit
@@ -194,16 +198,20 @@ h = hashlib.sha256()
 for leaf in jax.tree.leaves(eqx.filter(state.model, eqx.is_array)):
     h.update(np.asarray(leaf).tobytes())
 programs = tr._programs.values()
+from fhnn.models.base import _SOLVE
+ro = state.model.rollout(data.test)
+rollout = hashlib.sha256(np.asarray(ro.states).tobytes() + np.asarray(ro.ok).tobytes()).hexdigest()
 print(json.dumps({"stored": sum(p.stored for p in programs), "loaded": sum(p.loaded for p in programs),
-                  "weights": h.hexdigest()}))
+                  "weights": h.hexdigest(), "rollout": [_SOLVE.stored, _SOLVE.loaded, rollout]}))
 """
 
 
 def test_a_new_process_trains_from_the_stored_programs_to_the_same_weights(tmp_path):
     """Two processes (different hash seeds) train the same small run (Adam, then an L-BFGS polish,
-    whose stored program takes its state by donation) with one cache folder: the first compiles
-    and stores the trainer's programs, the second loads every one of them, and both end at the
-    weights of a third process that runs the plain jitted programs (no store, nothing donated)."""
+    whose stored program takes its state by donation) and roll the result out over the test split
+    with one cache folder: the first compiles and stores the trainer's programs and the rollout,
+    the second loads every one of them, and both end at the weights and rollout of a third process
+    that runs the plain jitted programs (no store, nothing donated)."""
     sc = get_scenario("steady_vortex")
     data = tmp_path / "data.h5"
     write_dataset(
@@ -223,9 +231,16 @@ def test_a_new_process_trains_from_the_stored_programs_to_the_same_weights(tmp_p
         runs.append(json.loads(done.stdout.splitlines()[-1]))
     first, second, plain = runs
     assert first["stored"] >= 3 and first["loaded"] == 0  # the Adam chunk, validation, L-BFGS
-    assert second == {"stored": 0, "loaded": first["stored"], "weights": first["weights"]}
-    assert plain == {"stored": 0, "loaded": 0, "weights": first["weights"]}
-    assert len(list(Path(cache, executables.FOLDER).iterdir())) == first["stored"]
+    rollout = first["rollout"][2]
+    assert first["rollout"] == [1, 0, rollout]
+    assert second == {
+        "stored": 0,
+        "loaded": first["stored"],
+        "weights": first["weights"],
+        "rollout": [0, 1, rollout],
+    }
+    assert plain == {"stored": 0, "loaded": 0, "weights": first["weights"], "rollout": [0, 0, rollout]}
+    assert len(list(Path(cache, executables.FOLDER).iterdir())) == first["stored"] + 1
 
 
 def test_the_store_follows_the_cache_folder_and_can_be_turned_off(tmp_path, monkeypatch):

@@ -13,6 +13,8 @@ functions by name and bytecode) and the shape and dtype of every array. Every pr
 that wrote the file and every later one — runs the exported module, compiled ahead of time over the
 arrays; its XLA compilation is served by JAX's persistent cache, so a later process neither traces
 the function nor compiles it (~0.8 s). Results are therefore the same bits in every process.
+The trainer's programs, rollouts (:meth:`fhnn.models.base.AbstractVectorField.solve`) and
+simulations (:func:`fhnn.data.simulate.integrate`) are stored programs.
 (A function's own bytecode is hashed, not that of functions it calls from outside this package:
 after changing such a function, delete ``executables/``.)
 
@@ -212,8 +214,9 @@ def store_folder() -> Path | None:
 
 
 #: Programs made or loaded in this process, by signature: a second job of the same signature
-#: (an ensemble's next member) reuses them with no file read.
-_MEMO: dict[Any, _Program] = {}
+#: (an ensemble's next member) reuses them with no file read. ``None``: the signature cannot be
+#: keyed or exported (it is called as it is, without trying again).
+_MEMO: dict[Any, _Program | None] = {}
 
 
 class StoredProgram:
@@ -259,11 +262,10 @@ class StoredProgram:
             except TypeError:
                 program = None
             else:
-                program = _MEMO.get(signature)
-                if program is None:
-                    program = self._prepare(folder, signature, arrays)
-                    if program is not None:
-                        _MEMO[signature] = program
+                if signature in _MEMO:
+                    program = _MEMO[signature]
+                else:
+                    program = _MEMO[signature] = self._prepare(folder, signature, arrays)
             self._last = (signature, program)
         return self.fn(*args) if program is None else program(arrays)
 

@@ -9,8 +9,8 @@ switches JAX to float64, so every computation of the package runs in double prec
 compiled once (a training step, a rollout) is loaded, not compiled again, by later jobs and
 processes that share the folder. Every ``fhnn`` command uses the folder
 :func:`default_cache_dir` names (``$FHNN_JAX_CACHE``; by default ``~/.cache/fhnn/jax``): a second
-run of the same shapes then loads its training step instead of compiling it — untraced, from the
-executables :mod:`fhnn.executables` keeps in the same folder (measured in
+run of the same shapes then loads its training step, rollouts and simulations instead of compiling
+them — untraced, from the executables :mod:`fhnn.executables` keeps in the same folder (measured in
 ``benchmarks/training_speed.py``).
 """
 

@@ -27,11 +27,16 @@ import numpy as np
 from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
 from fhnn.data.dataset import SPLITS, Dataset, Split
 from fhnn.errors import ConfigError, SimulationError
+from fhnn.executables import StoredProgram
 from fhnn.physics.actuation import actuation_force, no_actuation, sample_actuation
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import solve_forced_batch
 from fhnn.physics.scenarios import DatasetDefaults, Scenario
 from fhnn.runtime import __version__
+
+#: The batched solve, kept compiled on disk (:mod:`fhnn.executables`): a later process simulates
+#: a scenario of the same structure and shapes untraced.
+_SOLVE = StoredProgram(solve_forced_batch)
 
 #: ``progress(split, done, total)`` is called after every batch.
 ProgressFn = Callable[[str, int, int], None]
@@ -166,9 +171,7 @@ def integrate(
         stop = min(start + size, n)
         idx = np.minimum(np.arange(start, start + size), n - 1)  # pad with the last trajectory
         # steps land on every sample time (no interpolation): 1.6e-12 real error at tol 1e-12
-        ys, ok = solve_forced_batch(
-            eom, jnp.asarray(initial_states[idx]), jnp.asarray(actuation[idx]), ts_j, rtol, atol
-        )
+        ys, ok = _SOLVE(eom, jnp.asarray(initial_states[idx]), jnp.asarray(actuation[idx]), ts_j, rtol, atol)
         states.append(np.asarray(ys)[: stop - start])
         oks.append(np.asarray(ok)[: stop - start])
         if progress is not None:

@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from fhnn.data.dataset import Split, samples_until
+from fhnn.executables import StoredProgram
 from fhnn.physics.actuation import forcing
 from fhnn.physics.integrators import rk4_solve, rk4_step, solve_forced_batch
 
@@ -39,6 +40,9 @@ ROLLOUT_TOL = 1e-10
 #: A rollout whose state exceeds this multiple of the largest initial-state component (at least
 #: 1) has blown up; it stops there and is reported as diverged.
 BLOW_UP = 1e3
+#: The batched rollout, kept compiled on disk (:mod:`fhnn.executables`): a later process runs a
+#: rollout of the same model structure and shapes untraced.
+_SOLVE = StoredProgram(solve_forced_batch)
 #: Step budget per sample interval: a rollout needing more (a stiff, e.g. LNN, model) counts as a
 #: solver failure and is reported as diverged. Well-posed models take about one step per interval.
 STEPS_PER_SAMPLE = 20
@@ -221,7 +225,7 @@ class AbstractVectorField(AbstractModel):
         per interval, fails the trajectory."""
         max_steps = STEPS_PER_SAMPLE * (t.shape[-1] - 1) + 1000
         bound = jnp.asarray(BLOW_UP * max(1.0, float(np.max(np.abs(y0)))))
-        ys, ok = solve_forced_batch(
+        ys, ok = _SOLVE(
             self,
             jnp.asarray(y0),
             jnp.asarray(actuation),
