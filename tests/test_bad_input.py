@@ -149,6 +149,8 @@ CASES = [
     ([*S, "-o", "{ws}/n.h5", "--seed", "-1"], "seed must be >= 0, got -1"),
     ([*S, "-o", "{ws}/n.h5", "--obs-noise", "-0.1"], "obs_noise must be >= 0"),
     (["simulate", "vortex", "-o", "{ws}/n.h5"], "unknown scenario 'vortex'"),
+    ([*S, "-o", "{ws}/n.h5", "--duration", "1e7"], "more than the solver's 200,000 steps"),
+    ([*S, "-o", "{ws}/n.h5", "--n-traj", "1000000000"], "need about 1.25e+05 GiB of memory, more than"),
     ([*S, "-o", "{ws}/missing/n.h5"], "output folder '{ws}/missing' does not exist"),
     ([*S, "-o", "{ws}/run"], "output path '{ws}/run' is a folder"),
     ([*S, "-o", "{ws}/afile/n.h5"], "output folder '{ws}/afile' is a file, not a folder"),
@@ -171,6 +173,7 @@ CASES = [
     ([*T, "-o", "{ws}/r", "--set", "train.lr=-1"], "lr must be > 0, got -1.0"),
     ([*T, "-o", "{ws}/r", "--set", "train.lr=nan"], "lr must be"),
     ([*T, "-o", "{ws}/r", "--set", "model.width=0"], "width must be > 0, got 0"),
+    ([*T, "-o", "{ws}/r", "--set", "train.shoot=100000"], "train.shoot=100000: give longer trajectories"),
     (
         [*T, "-o", "{ws}/r", "--set", "width=8"],
         "unknown setting 'width' for run (did you mean 'model.width'?)",
@@ -254,6 +257,7 @@ CASES = [
         "--split must be three percentages",
     ),
     (["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--split", "70/20/20"], "summing to 100"),
+    (["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--split", "80/20/0"], "each a share > 0"),
     (
         ["import", "{ws}/good.csv", "-o", "{ws}/missing/i.h5", *B],
         "output folder '{ws}/missing' does not exist",
@@ -268,6 +272,7 @@ CASES = [
     (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,a,b"], "--initial expects x,y,vx,vy"),
     (["predict", "{ws}/run", "--duration", "0", "--initial", "0,1,0,0"], "--duration must be > 0 s"),
     ([*P, "--dt", "-1"], "--dt must be > 0 s"),
+    ([*P, "--dt", "1e-7"], "is 1e+07 output samples per track; at most 1,000,000"),
     ([*P, "--fit-window", "0"], "--fit-window must be > 0 s"),
     (
         ["predict", "{ws}/run", "--duration", "5", "--initial", "0,1,0,0", "--forcing", "{ws}/force.csv"],

@@ -222,7 +222,10 @@ def import_table(
         float | None, typer.Option("--volume", help="Displaced volume V in m³ [default: M / rho]")
     ] = None,
     split: Annotated[
-        str, typer.Option("--split", help="Percent of trajectories for train/val/test.")
+        str,
+        typer.Option(
+            "--split", help="Percent of trajectories for train/val/test, each > 0 (each gets at least one)."
+        ),
     ] = "70/20/10",
     seed: Annotated[int, typer.Option(help="Seed of the split's permutation.")] = 0,
     time_dependent: Annotated[
@@ -500,6 +503,8 @@ def _train_runs(runs: list[Any], labels: list[str], dataset: Any, *, quiet: bool
     todo = [(run, label) for run, label in zip(runs, labels, strict=True) if not run.finished]
     if not todo:
         return
+    for run, _ in todo:  # before the progress bar: a data set too short for the windows is one line
+        run.check_windows(dataset)
     names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam"}
     columns = (
         TextColumn("{task.fields[label]}{task.fields[phase]:9s}"),

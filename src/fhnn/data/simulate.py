@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from collections.abc import Callable
 from typing import Literal
 
@@ -37,6 +38,24 @@ from fhnn.runtime import __version__
 #: The batched solve, kept compiled on disk (:mod:`fhnn.executables`): a later process simulates
 #: a scenario of the same structure and shapes untraced.
 _SOLVE = StoredProgram(solve_forced_batch)
+
+#: Step budget of a simulated trajectory's solve. Steps land on every sample time, so a trajectory
+#: of more samples than this cannot be simulated (:meth:`SimulationConfig.validate` says so).
+MAX_STEPS = 200_000
+#: Bytes of memory per sample of a data set while it is simulated: states, clean states,
+#: derivatives and forces (14 float64 values), held twice while the batches are joined.
+BYTES_PER_SAMPLE = 2 * 14 * 8
+#: Bytes per sample of one batch's solve (its states, kept by the solver and copied out).
+BYTES_PER_BATCH_SAMPLE = 3 * 4 * 8
+
+
+def physical_memory() -> int | None:
+    """This machine's memory in bytes, or ``None`` where the system does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
 
 #: ``progress(split, done, total)`` is called after every batch.
 ProgressFn = Callable[[str, int, int], None]
@@ -102,6 +121,23 @@ class SimulationConfig(Config):
                 f"simulation: n_traj = {self.n_traj} is too small for split {self.split}: "
                 f"{counts} (every split needs at least one trajectory; use n_traj >= 3)"
             )
+        samples = {name: self.sample_count(name) for name in counts}
+        longest = max(samples.values())
+        if longest - 1 > MAX_STEPS:
+            raise ConfigError(
+                f"simulation: {longest:,} samples per trajectory (duration / dt) are more than the "
+                f"solver's {MAX_STEPS:,} steps, and it steps onto every sample: a longer dt or a "
+                f"shorter duration"
+            )
+        need = BYTES_PER_SAMPLE * sum(counts[k] * samples[k] for k in counts)
+        need += BYTES_PER_BATCH_SAMPLE * min(self.batch_size, self.n_traj) * longest
+        memory = physical_memory()
+        if memory is not None and need > memory:
+            raise ConfigError(
+                f"simulation: {self.n_traj:,} trajectories of up to {longest:,} samples need about "
+                f"{need / 2**30:.3g} GiB of memory, more than this machine's {memory / 2**30:.3g} GiB: "
+                f"fewer trajectories, a shorter duration or a longer dt"
+            )
 
     @classmethod
     def for_scenario(cls, scenario: Scenario, **overrides: object) -> SimulationConfig:
@@ -116,11 +152,14 @@ class SimulationConfig(Config):
         n_test = max(1, round(self.n_traj * self.split[2])) if self.split[2] > 0 else 0
         return {"train": self.n_traj - n_val - n_test, "val": n_val, "test": n_test}
 
+    def sample_count(self, split: str) -> int:
+        """Samples per trajectory of ``split``: ``0, dt, …`` up to the duration."""
+        duration = self.test_duration if split == "test" else self.duration
+        return math.floor(duration / self.dt + 1e-9) + 1
+
     def times(self, split: str) -> np.ndarray:
         """Sample times of ``split`` [s], shape ``(T,)``: ``0, dt, …`` up to the duration."""
-        duration = self.test_duration if split == "test" else self.duration
-        n = math.floor(duration / self.dt + 1e-9) + 1
-        return self.dt * np.arange(n, dtype=np.float64)
+        return self.dt * np.arange(self.sample_count(split), dtype=np.float64)
 
 
 @eqx.filter_jit
@@ -171,7 +210,9 @@ def integrate(
         stop = min(start + size, n)
         idx = np.minimum(np.arange(start, start + size), n - 1)  # pad with the last trajectory
         # steps land on every sample time (no interpolation): 1.6e-12 real error at tol 1e-12
-        ys, ok = _SOLVE(eom, jnp.asarray(initial_states[idx]), jnp.asarray(actuation[idx]), ts_j, rtol, atol)
+        ys, ok = _SOLVE(
+            eom, jnp.asarray(initial_states[idx]), jnp.asarray(actuation[idx]), ts_j, rtol, atol, MAX_STEPS
+        )
         states.append(np.asarray(ys)[: stop - start])
         oks.append(np.asarray(ok)[: stop - start])
         if progress is not None:

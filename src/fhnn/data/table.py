@@ -341,7 +341,8 @@ class ImportSettings:
     Attributes:
         mass: dry mass ``M`` [kg]. area: reference area ``A`` [m²]. rho: fluid density [kg/m³].
         volume: displaced volume ``V`` [m³] (default ``M / rho``, a floating body).
-        split: fractions of the trajectories for train, val and test (summing to 1).
+        split: fractions of the trajectories for train, val and test (summing to 1, each > 0:
+            every split gets at least one trajectory).
         seed: seed of the split's permutation.
         time_dependent: whether models may let the flow depend on time.
         smoother: the velocity estimator: a key of :data:`~fhnn.data.derivatives.SMOOTHERS`, or
@@ -373,6 +374,11 @@ class ImportSettings:
         ):
             raise ConfigError(
                 f"--split must be three fractions summing to 1 (e.g. 70/20/10), got {self.split}"
+            )
+        if min(self.split) == 0:  # split_counts would give the split one trajectory regardless
+            raise ConfigError(
+                f"--split must give train, val and test each a share > 0 (each gets at least one "
+                f"trajectory), got {self.split}"
             )
         if self.seed < 0:
             raise ConfigError(f"--seed must be >= 0, got {self.seed}")

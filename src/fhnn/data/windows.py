@@ -44,26 +44,34 @@ class Windows:
     BATCH_FIELDS = ("s", "t", "deriv", "forces", "act", "traj", "dforce")
     FIELDS = (*BATCH_FIELDS, "start")
 
-    @classmethod
-    def of(cls, split: Split, window: int = 2, *, skip: int = 0) -> Windows:
-        """Every window of ``window`` consecutive real samples (padding never enters one) that
-        starts at sample ``skip`` of its trajectory or later; on irregularly sampled data each
-        window carries its own times."""
-        n, T = split.n_traj, split.n_times
+    @staticmethod
+    def check(split: Split, window: int = 2, *, skip: int = 0) -> None:
+        """Raise :class:`~fhnn.errors.ConfigError` unless every trajectory of ``split`` holds a
+        window of ``window`` samples and one of them starts at sample ``skip`` or later (what
+        :meth:`of` needs; cheap: no window is cut)."""
         counts = split.sample_counts
         if counts.min() < window:
             raise ConfigError(
                 f"trajectories of {counts.min()} samples are shorter than the model's window {window}"
             )
-        starts = np.arange(T - window + 1)
-        idx = starts[:, None] + np.arange(window)[None, :]  # (K, W)
-        inside = starts[None, :] + window <= counts[:, None]  # (N, K): inside each trajectory
-        keep = (inside & (starts[None, :] >= skip)).reshape(-1)
-        if not keep.any():
+        if counts.max() < skip + window:
             raise ConfigError(
                 f"no trajectory has a window of {window} samples starting at sample {skip} or later "
                 f"(the longest has {counts.max()} samples)"
             )
+
+    @classmethod
+    def of(cls, split: Split, window: int = 2, *, skip: int = 0) -> Windows:
+        """Every window of ``window`` consecutive real samples (padding never enters one) that
+        starts at sample ``skip`` of its trajectory or later; on irregularly sampled data each
+        window carries its own times."""
+        cls.check(split, window, skip=skip)
+        n, T = split.n_traj, split.n_times
+        counts = split.sample_counts
+        starts = np.arange(T - window + 1)
+        idx = starts[:, None] + np.arange(window)[None, :]  # (K, W)
+        inside = starts[None, :] + window <= counts[:, None]  # (N, K): inside each trajectory
+        keep = (inside & (starts[None, :] >= skip)).reshape(-1)
 
         def cut(a: np.ndarray) -> np.ndarray:
             return a[:, idx].reshape(-1, window, *a.shape[2:])[keep]

@@ -273,6 +273,11 @@ def _forces_at(
     return np.stack([np.interp(t, tf, force[:, 0]), np.interp(t, tf, force[:, 1])], axis=1)
 
 
+#: Most output times of one forecast track (a forecast's states are held in memory: 32 bytes per
+#: time, track and drawn start state).
+MAX_FORECAST_SAMPLES = 1_000_000
+
+
 def predict_tracks(
     model: AbstractVectorField,
     *,
@@ -299,6 +304,11 @@ def predict_tracks(
         raise ConfigError(f"--duration must be > 0 s, got {duration!r}")
     if not (np.isfinite(dt) and 0 < dt <= duration):
         raise ConfigError(f"--dt must be > 0 s and at most the duration, got {dt!r}")
+    if duration / dt > MAX_FORECAST_SAMPLES:
+        raise ConfigError(
+            f"--duration {duration:g} s at --dt {dt:g} s is {duration / dt:.3g} output samples per "
+            f"track; at most {MAX_FORECAST_SAMPLES:,} (a longer --dt or a shorter --duration)"
+        )
     if not (np.isfinite(fit_window) and fit_window > 0):
         raise ConfigError(f"--fit-window must be > 0 s, got {fit_window!r}")
     if (initial is None) == (history is None):

@@ -34,6 +34,7 @@ import numpy as np
 
 from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
 from fhnn.data.dataset import Dataset, read_dataset
+from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import check_new_folder, commit_files, recover_files
 from fhnn.models.base import AbstractModel, AbstractVectorField
@@ -289,11 +290,31 @@ class Run:
         """The :class:`~fhnn.training.trainer.Trainer` of this run on ``dataset`` (its training
         windows sized for the model); ``on_step(phase, step)`` is told of every quasi-Newton step and
         every chunk of Adam steps."""
+        return Trainer(
+            self.train_config, dataset.train, dataset.val, window=self.check_windows(dataset), on_step=on_step
+        )
+
+    def check_windows(self, dataset: Dataset) -> int:
+        """The training window (samples per example: the model's, or the multi-step loss's
+        ``train.shoot`` for a vector field) after checking that ``dataset``'s train and val splits
+        hold such windows (:meth:`~fhnn.data.windows.Windows.check`; a
+        :class:`~fhnn.errors.ConfigError` otherwise, saying how to shorten the multi-step loss's)."""
         skeleton = self.skeleton()
         window = skeleton.window
         if isinstance(skeleton, AbstractVectorField):  # a vector field takes the multi-step loss
             window = max(window, self.train_config.shoot)
-        return Trainer(self.train_config, dataset.train, dataset.val, window=window, on_step=on_step)
+        try:
+            for split in (dataset.train, dataset.val):
+                Windows.check(split, window, skip=self.train_config.first_start)
+        except ConfigError as err:
+            shoot = self.train_config.shoot
+            if window != shoot:
+                raise
+            raise ConfigError(
+                f"{err} (the multi-step loss's windows, train.shoot={shoot}: give longer trajectories "
+                f"or fewer samples per window, --set train.shoot=N with N < {shoot}; 0 turns the loss off)"
+            ) from None
+        return window
 
     def train(
         self,
