@@ -4,8 +4,10 @@
 from __future__ import annotations
 
 import functools
+import json
 import operator
 import re
+import shutil
 
 import equinox as eqx
 import h5py
@@ -27,7 +29,15 @@ from fhnn.data.derivatives import (
     rts_smooth,
     smooth_derivatives,
 )
-from fhnn.data.table import PAD_STEP, observe, read_table, split_counts, start_errors, write_table
+from fhnn.data.table import (
+    PAD_STEP,
+    observe,
+    read_table,
+    seconds_to_date_times,
+    split_counts,
+    start_errors,
+    write_table,
+)
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_metrics
@@ -829,3 +839,86 @@ def test_without_forcing_only_the_drag_to_inertia_ratios_are_determined() -> Non
         [[3.0 / 15, 3.0 / 20, 0.4 / 15, 0.4 / 20, drag / 15, drag / 20]],
         rtol=1e-15,
     )
+
+
+def test_predict_keeps_the_clock_of_the_imported_table(tmp_path, capsys, monkeypatch) -> None:
+    """A table whose clock starts at 1000 s, imported with a time-dependent flow: the model's t = 0
+    is the table's first sample. ``fhnn predict`` reads ``--t0``, a history and a forcing table on
+    the table's clock, hands the model its own time, and writes the forecast on the table's clock;
+    a run on a table of date-times reads and writes date-times, and refuses them otherwise."""
+    rng = np.random.default_rng(3)
+    t = 1000.0 + 0.1 * np.arange(50)
+    table = {
+        "traj_id": np.repeat(np.arange(4), t.size),
+        "t": np.tile(t, 4),
+        "x": np.concatenate([k + 0.05 * (t - 1000.0) for k in range(4)]) + 1e-3 * rng.normal(size=4 * t.size),
+        "y": np.tile(0.02 * (t - 1000.0), 4) + 1e-3 * rng.normal(size=4 * t.size),
+    }
+    write_table(table, tmp_path / "track.csv")
+    data, run = tmp_path / "track.h5", tmp_path / "run"
+    for args in (
+        ["import", str(tmp_path / "track.csv"), "-o", str(data), "--mass", "10", "--area", "0.1"],
+        ["train", str(data), "-o", str(run), "--steps", "0", "--set", "model.width=8"],
+    ):
+        with pytest.raises(SystemExit) as info:
+            main([*args, *(["--time-dependent"] if args[0] == "import" else []), "-q"])
+        assert info.value.code == 0
+    assert Run.load(run).clock() == {"origin": None, "offset": 1000.0}
+    history = {c: v[table["t"] <= 1002.0] for c, v in table.items()}
+    write_table(history, tmp_path / "history.csv")
+    write_table({"t": [1000.0, 1010.0], "Fx": [0.0, 1.0], "Fy": [0.5, 0.5]}, tmp_path / "force.csv")
+    seen = {}
+    real = predict_tracks
+
+    def spy(model, **kwargs):
+        seen.update(kwargs)
+        return real(model, **kwargs)
+
+    monkeypatch.setattr("fhnn.evaluation.predict.predict_tracks", spy)
+
+    def predict(run_dir, *args):
+        capsys.readouterr()
+        with pytest.raises(SystemExit) as info:
+            main(["predict", str(run_dir), "--duration", "1", "--dt", "0.5", "--samples", "0", *args])
+        out, err = capsys.readouterr()
+        assert info.value.code == 0, err
+        header, *lines = out.strip().splitlines()
+        return header.split(","), [line.split(",") for line in lines]
+
+    _, rows = predict(
+        run, "--initial", "1,0,0.05,0.02", "--t0", "1001.5", "--forcing", str(tmp_path / "force.csv")
+    )
+    assert seen["t0"] == 1.5  # the model's time
+    force_t, _ = seen["forcing_table"][None]
+    np.testing.assert_array_equal(force_t, [0.0, 10.0])
+    assert [float(r[1]) for r in rows] == [1001.5, 1002.0, 1002.5]  # the table's clock
+    _, rows = predict(run, "--history", str(tmp_path / "history.csv"))
+    np.testing.assert_allclose([tr.t[-1] for tr in seen["history"].trajectories], 2.0, atol=1e-9)
+    numeric = rows
+    assert [float(r[1]) for r in rows[:3]] == pytest.approx([1002.0, 1002.5, 1003.0], abs=1e-9)
+    # a run whose table gave date-times (first sample 1000 s after its earliest date-time)
+    iso_run = tmp_path / "iso_run"
+    shutil.copytree(run, iso_run)
+    info_path = iso_run / "run.json"
+    stored = json.loads(info_path.read_text())
+    stored["clock"] = {"origin": "2026-03-01T10:00:00Z", "offset": 1000.0}
+    info_path.write_text(json.dumps(stored))
+    stamped = dict(history, t=seconds_to_date_times(history["t"], "2026-03-01T10:00:00Z"))
+    write_table(stamped, tmp_path / "stamped.csv")
+    _, rows = predict(iso_run, "--history", str(tmp_path / "stamped.csv"))
+    assert [r[1] for r in rows[:3]] == [
+        "2026-03-01T10:16:42.000Z",
+        "2026-03-01T10:16:42.500Z",
+        "2026-03-01T10:16:43.000Z",
+    ]
+    assert [r[2:] for r in rows] == [r[2:] for r in numeric]  # the same forecast
+    for run_dir, table_name, message in (
+        (run, "stamped.csv", "column 't' holds date-times, but the run's clock counts seconds"),
+        (iso_run, "unzoned.csv", "its date-times are without a time zone and the run's clock"),
+    ):
+        unzoned = dict(stamped, t=np.char.rstrip(stamped["t"].astype(str), "Z"))
+        write_table(unzoned, tmp_path / "unzoned.csv")
+        with pytest.raises(SystemExit) as info:
+            main(["predict", str(run_dir), "--duration", "1", "--history", str(tmp_path / table_name)])
+        assert info.value.code == 2
+        assert message in capsys.readouterr().err

@@ -731,7 +731,14 @@ def predict(
         str | None,
         typer.Option("--initial", help="Start state x,y,vx,vy [m, m, m/s, m/s] at --t0."),
     ] = None,
-    t0: Annotated[float, typer.Option("--t0", help="Time of --initial in seconds.")] = 0.0,
+    t0: Annotated[
+        float,
+        typer.Option(
+            "--t0",
+            help="Time of --initial in seconds on the clock of the run's data (an imported table's "
+            "own seconds, or seconds after its first date-time).",
+        ),
+    ] = 0.0,
     history: Annotated[
         Path | None,
         typer.Option(
@@ -778,8 +785,19 @@ def predict(
     --history, or both — then x_lo, x_hi, y_lo, … (5th and 95th percentiles over the members'
     forecasts and those from start states drawn from each fit's uncertainty; x, y, … are the
     members' median). A history's start state is the one the model explains best (a least squares
-    fit of its trajectory to the last observed positions), not a smoother's end point."""
-    from fhnn.data.table import check_table_name, read_forcing, read_table, write_table
+    fit of its trajectory to the last observed positions), not a smoother's end point. Times are on
+    the clock of the table the run's data were imported from — its seconds, or date-times where it
+    gave date-times — for --t0, the history and the forcing alike; the forecast's t is on that
+    clock too, as date-times where the history gave date-times."""
+    from fhnn.data.table import (
+        SECONDS_ONLY,
+        check_table_name,
+        read_forcing,
+        read_table,
+        seconds_to_date_times,
+        shift_times,
+        write_table,
+    )
     from fhnn.evaluation.predict import FIT_WINDOW, Forecast, predict_tracks
     from fhnn.models.base import AbstractVectorField
     from fhnn.training.ensemble import INTERVAL, is_ensemble, member_folders
@@ -798,8 +816,6 @@ def predict(
     if output is not None:
         check_output_path(output)
         check_table_name(output)
-    tracks = read_table(history) if history is not None else None
-    forces = read_forcing(forcing) if forcing is not None else None
     folders = member_folders(run_dir) if is_ensemble(run_dir) else [run_dir]
     models = []
     for folder in folders:
@@ -809,6 +825,19 @@ def predict(
                 f"predict needs a vector-field model; a {run.kind!r} model steps on its own grid"
             )
         models.append(run.state.best_model)
+    # every time given is on the clock of the table the run's data came from; the model's t = 0
+    # is that clock's `offset` (the imported table's first sample)
+    clock = run.clock()
+    origin, offset = clock["origin"], clock["offset"]
+    read_origin = SECONDS_ONLY if origin is None else origin
+    tracks = read_table(history, read_origin) if history is not None else None
+    forces = read_forcing(forcing, read_origin) if forcing is not None else None
+    dates = tracks is not None and tracks.time_origin is not None
+    if offset:
+        if tracks is not None:
+            tracks = shift_times(tracks, -offset)
+        if forces is not None:
+            forces = {k: (t - offset, f) for k, (t, f) in forces.items()}
     if dt is None:
         dt = (
             float(np.median(np.concatenate([np.diff(tr.t) for tr in tracks.trajectories])))
@@ -821,7 +850,7 @@ def predict(
             duration=duration,
             dt=dt,
             initial=None if state is None else np.asarray(state),
-            t0=t0,
+            t0=t0 - offset,
             history=tracks,
             forcing_table=forces,
             fit_window=FIT_WINDOW if fit_window is None else fit_window,
@@ -843,6 +872,9 @@ def predict(
     if failed:
         err.print(f"warning: the forecast of {', '.join(failed)} diverged", highlight=False)
     columns = result.columns()
+    columns["t"] = columns["t"] + offset
+    if dates:  # the history gave date-times: so does the forecast
+        columns["t"] = seconds_to_date_times(columns["t"], origin)
     if output is not None:
         write_table(columns, output)
         err.print(f"wrote {output}", highlight=False)

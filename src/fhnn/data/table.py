@@ -125,16 +125,21 @@ def _read_arrow(path: Path) -> Any:
     return table.rename_columns(names)
 
 
+#: The ``origin`` of :func:`read_table` and :func:`read_forcing` for a clock in seconds, with no
+#: date-time origin: a table of date-times is then an error.
+SECONDS_ONLY = ""
+
 #: A value that starts like an ISO-8601 date, and one that ends with a zone ("Z", "+02:00").
 _DATE = r"^\s*\d{4}-\d{2}-\d{2}"
 _ZONE = r"(Z|[+-]\d{2}:?\d{2})\s*$"
 
 
-def _times(path: Path, column: Any) -> tuple[np.ndarray, str | None]:
+def _times(path: Path, column: Any, origin: str | None = None) -> tuple[np.ndarray, str | None]:
     """The time column in seconds (nulls as NaN) and, where it holds ISO-8601 date-times, the
-    earliest of them (the seconds count from it) as text; numbers are returned as they are. A
-    column of date-times with a value that is not one, or with zones on some rows only, is an
-    error naming the row."""
+    date-time the seconds count from, as text: ``origin`` where given (a date-time as this
+    function returns one), else the earliest of the column's; numbers are returned as they are.
+    A column of date-times with a value that is not one, or with zones on some rows only, or
+    where ``origin`` is :data:`SECONDS_ONLY`, is an error (naming the row)."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -172,11 +177,48 @@ def _times(path: Path, column: Any) -> tuple[np.ndarray, str | None]:
     ns = pc.cast(pc.cast(stamps, pa.timestamp("ns", tz=getattr(stamps.type, "tz", None))), pa.int64())
     valid = ~np.asarray(pc.is_null(ns).to_numpy(zero_copy_only=False), dtype=bool)
     values = np.asarray(pc.fill_null(ns, 0).to_numpy(zero_copy_only=False), dtype=np.int64)
-    origin = int(values[valid].min()) if valid.any() else 0
-    seconds = np.where(valid, (values - origin) / 1e9, np.nan)
     zone = "Z" if getattr(stamps.type, "tz", None) else ""
-    unit = next(u for u, q in (("s", 10**9), ("ms", 10**6), ("us", 10**3), ("ns", 1)) if origin % q == 0)
-    return seconds, f"{np.datetime_as_string(np.datetime64(origin, 'ns'), unit=unit)}{zone}"
+    if origin == SECONDS_ONLY:
+        raise DataFormatError(
+            f"{path}: column 't' holds date-times, but the run's clock counts seconds (it was "
+            "trained on times in seconds): give t in seconds on that clock"
+        )
+    if origin is not None:
+        if origin.endswith("Z") != bool(zone):
+            raise DataFormatError(
+                f"{path}: column 't': its date-times are {'with' if zone else 'without'} a time zone "
+                f"and the run's clock ({origin}) is {'without' if zone else 'with'}; give them alike"
+            )
+        start = int(np.datetime64(origin.removesuffix("Z"), "ns").astype(np.int64))
+    else:
+        start = int(values[valid].min()) if valid.any() else 0
+    seconds = np.where(valid, (values - start) / 1e9, np.nan)
+    return seconds, origin if origin is not None else date_time(start, zone)
+
+
+def date_time(ns: int | np.ndarray, zone: str = "") -> Any:
+    """Nanoseconds since 1970 as ISO-8601 text (one value or an array of them), to the coarsest
+    unit (s, ms, us, ns) that holds every value exactly, with ``zone`` ("Z" or "") appended."""
+    values = np.atleast_1d(np.asarray(ns, dtype=np.int64))
+    unit = next(
+        u for u, q in (("s", 10**9), ("ms", 10**6), ("us", 10**3), ("ns", 1)) if np.all(values % q == 0)
+    )
+    text = np.char.add(np.datetime_as_string(values.astype("datetime64[ns]"), unit=unit).astype(str), zone)
+    return str(text[0]) if np.ndim(ns) == 0 else text
+
+
+def shift_times(table: Table, seconds: float) -> Table:
+    """``table`` with every sample time moved by ``seconds``."""
+    moved = [dataclasses.replace(tr, t=tr.t + seconds) for tr in table.trajectories]
+    return dataclasses.replace(table, trajectories=moved)
+
+
+def seconds_to_date_times(seconds: np.ndarray, origin: str) -> np.ndarray:
+    """``seconds`` after the date-time ``origin`` (as :func:`_times` returns it) as ISO-8601 text
+    (rounded to the nanosecond), with ``origin``'s zone."""
+    start = int(np.datetime64(origin.removesuffix("Z"), "ns").astype(np.int64))
+    ns = start + np.round(np.asarray(seconds, dtype=float) * 1e9).astype(np.int64)
+    return date_time(ns, "Z" if origin.endswith("Z") else "")
 
 
 def _numeric(path: Path, name: str, column: Any) -> np.ndarray:
@@ -258,8 +300,10 @@ def _trajectory_ids(column: Any) -> tuple[np.ndarray, np.ndarray]:
     return names[codes], rank[codes]
 
 
-def read_table(path: str | os.PathLike[str]) -> Table:
-    """Read and check a trajectory table (see the module docstring)."""
+def read_table(path: str | os.PathLike[str], origin: str | None = None) -> Table:
+    """Read and check a trajectory table (see the module docstring); date-times count in seconds
+    from ``origin`` where given (a date-time as :attr:`Table.time_origin` holds one), else from
+    the table's earliest."""
     path, arrow, names = _open(path, "a table", REQUIRED, COLUMNS)
     for a, b in OPTIONAL_PAIRS:
         if (a in names) != (b in names):
@@ -270,7 +314,7 @@ def read_table(path: str | os.PathLike[str]) -> Table:
     if rows == 0:
         raise DataFormatError(f"{path}: the table has no rows")
     ids, rank = _trajectory_ids(arrow.column("traj_id"))
-    times, origin = _times(path, arrow.column("t"))
+    times, origin = _times(path, arrow.column("t"), origin)
     values = {c: times if c == "t" else _numeric(path, c, arrow.column(c)) for c in names if c != "traj_id"}
     _reject_infinite(path, values, ids)
     gap = np.zeros(rows, dtype=bool)
@@ -303,15 +347,19 @@ def read_table(path: str | os.PathLike[str]) -> Table:
 FORCING_COLUMNS = ("t", "Fx", "Fy")
 
 
-def read_forcing(path: str | os.PathLike[str]) -> dict[str | None, tuple[np.ndarray, np.ndarray]]:
-    """A table of known forces: columns ``t, Fx, Fy`` [s, N, N] and optionally ``traj_id``.
-    Returns ``{traj_id: (t (n,), force (n, 2))}`` sorted by time, with the key ``None`` for a
-    table without ``traj_id`` (one forcing for every trajectory). Rows with a missing value are
-    dropped; a trajectory needs two rows and distinct times."""
+def read_forcing(
+    path: str | os.PathLike[str], origin: str | None = None
+) -> dict[str | None, tuple[np.ndarray, np.ndarray]]:
+    """A table of known forces: columns ``t, Fx, Fy`` [s, N, N] and optionally ``traj_id``; ``t``
+    in seconds or as ISO-8601 date-times, counted from ``origin`` where given, as in
+    :func:`read_table`. Returns ``{traj_id: (t (n,), force (n, 2))}`` sorted by time, with the
+    key ``None`` for a table without ``traj_id`` (one forcing for every trajectory). Rows with a
+    missing value are dropped; a trajectory needs two rows and distinct times."""
     path, arrow, names = _open(path, "a forcing table", FORCING_COLUMNS, (*FORCING_COLUMNS, "traj_id"))
     if arrow.num_rows == 0:
         raise DataFormatError(f"{path}: the table has no rows")
-    values = {c: _numeric(path, c, arrow.column(c)) for c in FORCING_COLUMNS}
+    values = {c: _numeric(path, c, arrow.column(c)) for c in FORCING_COLUMNS[1:]}
+    values["t"] = _times(path, arrow.column("t"), origin)[0]
     _reject_infinite(path, values, None)
     if "traj_id" in names:
         ids = np.asarray([("" if v is None else str(v)) for v in arrow.column("traj_id").to_pylist()])
@@ -622,6 +670,7 @@ def write_table(columns: dict[str, np.ndarray], path: str | os.PathLike[str]) ->
 
 __all__ = [
     "COLUMNS",
+    "SECONDS_ONLY",
     "ImportSettings",
     "Table",
     "Trajectory",
@@ -630,6 +679,8 @@ __all__ = [
     "parse_split",
     "read_forcing",
     "read_table",
+    "seconds_to_date_times",
+    "shift_times",
     "start_errors",
     "table_to_dataset",
     "write_table",

@@ -33,7 +33,7 @@ import jax
 import numpy as np
 
 from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
-from fhnn.data.dataset import Dataset, read_dataset
+from fhnn.data.dataset import IMPORTED, Dataset, read_dataset
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import check_new_folder, commit_files, recover_files
@@ -144,6 +144,13 @@ def check_trainable(dataset: Dataset) -> None:
                 raise DataFormatError(f"split {name!r}: {key} contains NaN or infinite values")
 
 
+def data_clock(dataset: Dataset) -> dict[str, Any]:
+    """The clock of an imported data set (:meth:`Run.clock`): origin None, offset 0 where it was
+    simulated."""
+    record = dataset.extra.get("import") or {}
+    return {"origin": record.get("time_origin"), "offset": float(record.get("time_offset", 0.0))}
+
+
 class Run:
     """A model, its trainer state and where they are saved.
 
@@ -152,7 +159,8 @@ class Run:
         config: what the run trains (:class:`RunConfig`).
         args: the data-derived build arguments (:attr:`ModelKind.arguments`).
         meta: the data set the run was trained on (``data``: its path relative to ``folder``,
-            ``data_sha256``, ``scenario``, ``data_seed``).
+            ``data_sha256``, ``scenario``, ``data_seed``; for imported data also ``clock``, the
+            model's time against the table's: :meth:`clock`).
         state: the trainer's state (``None`` before training).
     """
 
@@ -256,7 +264,24 @@ class Run:
             meta["data"] = data_ref or os.path.relpath(Path(data_path).resolve(), folder.resolve())
             meta["data_sha256"] = file_sha256(data_path)
         meta.update(scenario=dataset.scenario, data_seed=dataset.seed)
+        if "import" in dataset.extra:
+            meta["clock"] = data_clock(dataset)
         return cls(folder, config, MODELS[config.kind].arguments(dataset), meta)
+
+    def clock(self) -> dict[str, Any]:
+        """How the model's time relates to the times of the table its data were imported from:
+        ``{"origin": the date-time the table's seconds count from (None: the table gave
+        seconds), "offset": seconds of that clock at the model's t = 0}``. A run on simulated
+        data: origin None, offset 0. A run on imported data made before runs recorded it reads
+        it from its data file, or, where that is gone, takes origin None and offset 0."""
+        if "clock" in self.meta:
+            return dict(self.meta["clock"])
+        if self.meta.get("scenario") == IMPORTED and self.meta.get("data"):
+            try:
+                return data_clock(self.dataset())
+            except (DataFormatError, OSError):
+                pass
+        return {"origin": None, "offset": 0.0}
 
     def skeleton(self) -> AbstractModel:
         """A fresh model of this run's kind, configuration, build arguments and seed."""
@@ -483,7 +508,7 @@ class Run:
             config = RunConfig.from_dict({"kind": kind, "model": model_config, "train": info["train_config"]})
         except (ConfigError, KeyError, TypeError) as exc:
             raise DataFormatError(f"{info_path}: unreadable configuration ({exc})") from None
-        meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed") if k in info}
+        meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed", "clock") if k in info}
         run = cls(folder, config, info["build_arguments"], meta)
         skeleton = run.skeleton()
         old = version == 1
