@@ -207,6 +207,15 @@ def date_time(ns: int | np.ndarray, zone: str = "") -> Any:
     return str(text[0]) if np.ndim(ns) == 0 else text
 
 
+def dataset_clock(dataset: Dataset) -> dict[str, Any]:
+    """How a data set's times relate to the table it was imported from: ``{"origin": the
+    date-time the table's seconds count from (None: the table gave seconds), "offset": seconds of
+    that clock at the data set's t = 0}`` (its ``import`` record); origin None and offset 0 for a
+    simulated one."""
+    record = dataset.extra.get("import") or {}
+    return {"origin": record.get("time_origin"), "offset": float(record.get("time_offset", 0.0))}
+
+
 def shift_times(table: Table, seconds: float) -> Table:
     """``table`` with every sample time moved by ``seconds``."""
     moved = [dataclasses.replace(tr, t=tr.t + seconds) for tr in table.trajectories]
@@ -675,6 +684,7 @@ __all__ = [
     "Table",
     "Trajectory",
     "check_table_name",
+    "dataset_clock",
     "observe",
     "parse_split",
     "read_forcing",

@@ -8,10 +8,11 @@ as ``coefficients.csv`` and the learned flow on a grid as ``flow.nc``.
   coefficient ``½ρA c_q σ + c_l`` [N·s/m] at that σ: what the data determine even where they
   cannot split it between ``c_q`` and ``c_l``.
 - ``flow.nc``: NetCDF-4 (through xarray, h5netcdf engine) with coordinates ``x``, ``y`` [m] over
-  the training positions' bounding box (and ``t`` [s] over the training window for a
-  time-dependent flow) and variables ``u``, ``v`` [m/s] and ``psi`` [m²/s] of dims ``(y, x)`` or
-  ``(t, y, x)``; points farther than ``reach`` from every training position (where the data say
-  nothing about the flow) are NaN.
+  the training positions' bounding box (and ``t`` over the training window for a time-dependent
+  flow, on the clock of the table the data were imported from: its seconds, or "seconds since"
+  its first date-time, which xarray reads as date-times) and variables ``u``, ``v`` [m/s] and
+  ``psi`` [m²/s] of dims ``(y, x)`` or ``(t, y, x)``; points farther than ``reach`` from every
+  training position (where the data say nothing about the flow) are NaN.
 
 For an ensemble (``fhnn train --seeds N``) every value is the members' median at that point,
 and ``NAME_lo``, ``NAME_hi`` columns (CSV) or ``u_lo``, ``u_hi``, … variables (NetCDF) hold the
@@ -31,7 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from fhnn.data.dataset import Dataset
-from fhnn.data.table import write_table
+from fhnn.data.table import dataset_clock, write_table
 from fhnn.evaluation.recovery import (
     RATIO_NAMES,
     coefficients_at,
@@ -207,10 +208,16 @@ def write_flow_netcdf(
                     values[..., i],
                     {"units": units, "long_name": f"{long_name}, {which} end of the 90 % interval"},
                 )
+    clock = dataset_clock(dataset)
+    origin = clock["origin"]
     ds = xr.Dataset(
         data,
         coords={
-            "t": ("t", times, {"units": "s"}),
+            "t": (
+                "t",
+                times + clock["offset"],
+                {"units": "s" if origin is None else f"seconds since {origin}"},
+            ),
             "x": ("x", x, {"units": "m"}),
             "y": ("y", y, {"units": "m"}),
         },

@@ -34,6 +34,7 @@ import numpy as np
 
 from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
 from fhnn.data.dataset import IMPORTED, Dataset, read_dataset
+from fhnn.data.table import dataset_clock
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import check_new_folder, commit_files, recover_files
@@ -142,13 +143,6 @@ def check_trainable(dataset: Dataset) -> None:
         for key in ("states", "derivs"):
             if not np.all(np.isfinite(getattr(split, key))):
                 raise DataFormatError(f"split {name!r}: {key} contains NaN or infinite values")
-
-
-def data_clock(dataset: Dataset) -> dict[str, Any]:
-    """The clock of an imported data set (:meth:`Run.clock`): origin None, offset 0 where it was
-    simulated."""
-    record = dataset.extra.get("import") or {}
-    return {"origin": record.get("time_origin"), "offset": float(record.get("time_offset", 0.0))}
 
 
 class Run:
@@ -265,7 +259,7 @@ class Run:
             meta["data_sha256"] = file_sha256(data_path)
         meta.update(scenario=dataset.scenario, data_seed=dataset.seed)
         if "import" in dataset.extra:
-            meta["clock"] = data_clock(dataset)
+            meta["clock"] = dataset_clock(dataset)
         return cls(folder, config, MODELS[config.kind].arguments(dataset), meta)
 
     def clock(self) -> dict[str, Any]:
@@ -278,7 +272,7 @@ class Run:
             return dict(self.meta["clock"])
         if self.meta.get("scenario") == IMPORTED and self.meta.get("data"):
             try:
-                return data_clock(self.dataset())
+                return dataset_clock(self.dataset())
             except (DataFormatError, OSError):
                 pass
         return {"origin": None, "offset": 0.0}
