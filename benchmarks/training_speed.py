@@ -188,6 +188,22 @@ _ROLLOUT = (
     "print(first - seconds_per_call(lambda: m.predict(sp.states, sp, t, 1e-10, 1e-10), 2))"
 )
 
+#: The same for the fit of ``fhnn predict --history`` (:func:`fhnn.evaluation.predict.estimate_states`)
+#: on the first samples of 4 test trajectories (positions with 1 mm noise): 19 samples, then 23 in
+#: a new process (another history length in the same rung of the padding ladder, 24).
+_FIT = (
+    "import sys, time; sys.path.insert(0, 'benchmarks'); from fhnn.runtime import use_compilation_cache;"
+    "use_compilation_cache(sys.argv[1]); from _common import seconds_per_call; import numpy as np;"
+    "from fhnn.data.dataset import read_dataset; from fhnn.models.registry import MODELS;"
+    "from fhnn.training.run import RunConfig; from fhnn.evaluation.predict import estimate_states;"
+    "ds = read_dataset(sys.argv[2]); kind = MODELS['fhnn'];"
+    "m = kind.make(RunConfig().model, kind.arguments(ds), 0); sp = ds.test; k = int(sys.argv[3]);"
+    "t = np.tile(sp.t[:k], (4, 1)); rng = np.random.default_rng(0);"
+    "pos = sp.states[:4, :k, :2] + 1e-3 * rng.normal(size=(4, k, 2));"
+    "t0 = time.perf_counter(); estimate_states(m, t, pos); first = time.perf_counter() - t0;"
+    "print(first - seconds_per_call(lambda: estimate_states(m, t, pos), 2))"
+)
+
 
 def rollout_compile_times(path: Path) -> None:
     """A rollout's compilation (5 s of the test split, the FHNN defaults) in a first and a second
@@ -228,6 +244,23 @@ def rollout_compile_times(path: Path) -> None:
         f"(ratio {rows['store off'][1] / stored:.1f}); against Equinox's default: "
         f"{rows['store off, raise'][1]:.2f} s (ratio {rows['store off, raise'][1] / stored:.1f})"
     )
+    print("   fhnn predict's fit of a history, first call less a compiled one (4 tracks, 19 then 23 samples)")
+    for label, store in (("stored", "on"), ("store off", "off")):
+        with tempfile.TemporaryDirectory() as cache:
+            env = {**os.environ, STORE_ENV: store}
+            first, second = (
+                float(
+                    subprocess.run(
+                        [sys.executable, "-c", _FIT, cache, str(path), samples],
+                        capture_output=True,
+                        text=True,
+                        env=env,
+                        check=True,
+                    ).stdout.split()[-1]
+                )
+                for samples in ("19", "23")
+            )
+        print(f"  {label:10s} first process {first:6.2f} s, second process (another length) {second:6.2f} s")
 
 
 def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:

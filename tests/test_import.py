@@ -40,6 +40,7 @@ from fhnn.data.table import (
 )
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError
+from fhnn.evaluation import predict as predict_module
 from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_metrics
 from fhnn.evaluation.predict import Forecast, estimate_states, forecast, predict_tracks
 from fhnn.evaluation.recovery import RATIO_NAMES, coefficient_recovery, drag_ratios
@@ -643,7 +644,7 @@ class _Forced(AbstractVectorField):
         return self.eom(state, t, actuation_force(self.act, t))
 
 
-def test_estimated_state_is_the_one_the_positions_came_from(fine, rng) -> None:
+def test_estimated_state_is_the_one_the_positions_came_from(fine, rng, monkeypatch) -> None:
     split = _ragged(fine.test, rng)
     assert split.n_traj == 1
     t, clean, force, mask = _first_seconds(split, 1.0)
@@ -672,6 +673,26 @@ def test_estimated_state_is_the_one_the_positions_came_from(fine, rng) -> None:
     )
     np.testing.assert_allclose(again, states, rtol=0, atol=1e-9)
     np.testing.assert_allclose(rms_again, rms, rtol=1e-9)
+    # fits are padded to the ladder's sizes inside (tracks and samples), so that other histories
+    # share a compiled fit: five copies of the track (six tracks inside) each get its state
+    assert [predict_module._bucket(n) for n in (1, 2, 3, 5, 7, 9, 13, 17, 100)] == [
+        1,
+        2,
+        3,
+        6,
+        8,
+        12,
+        16,
+        24,
+        128,
+    ]
+    shapes = []
+    real_fit = predict_module._FIT
+    monkeypatch.setattr(predict_module, "_FIT", lambda *a: shapes.append(a[2].shape) or real_fit(*a))
+    copies = lambda a: np.repeat(a, 5, axis=0)  # noqa: E731
+    five, _ = estimate_states(truth, copies(t), copies(noisy), mask=copies(mask), force=copies(force))
+    np.testing.assert_allclose(five, np.repeat(states, 5, axis=0), rtol=0, atol=1e-9)
+    assert shapes == [(6, predict_module._bucket(t.shape[1]))]
     with pytest.raises(ValueError, match="at least 3 observed positions"):
         estimate_states(truth, t[:, :2], clean[:, :2, :2])
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from fhnn.data.table import PAD_STEP, Table
 from fhnn.errors import ConfigError
+from fhnn.executables import StoredProgram
 from fhnn.models.base import ROLLOUT_TOL, AbstractVectorField
 from fhnn.physics.actuation import forcing, no_actuation
 from fhnn.physics.integrators import rk4_solve
@@ -97,6 +98,18 @@ def _fit(
     return jax.vmap(one)(guess, t, fine, pos, mask, force, last)
 
 
+#: The fit, kept compiled on disk (:mod:`fhnn.executables`): a later process fits histories of
+#: the same padded shape (:func:`_bucket`) untraced.
+_FIT = StoredProgram(_fit)
+
+
+def _bucket(n: int) -> int:
+    """The least size of the ladder 1, 2, 3, 4, 6, 8, 12, 16, 24, … (``2^j`` and ``3·2^j``) that
+    holds ``n``: histories are padded to it, tracks and samples alike, so that histories of other
+    lengths share a compiled fit (one per rung) at no more than twice the work."""
+    return min(size for j in range(n.bit_length() + 1) for size in (2**j, 3 * 2**j) if size >= n)
+
+
 def estimate_states(
     model: AbstractVectorField,
     t: np.ndarray,
@@ -144,19 +157,29 @@ def estimate_states(
         guess_velocity = (pos[:, 1] - pos[:, 0]) / (t[:, 1:2] - t[:, :1])
     guess = np.concatenate([pos[:, 0], guess_velocity], axis=1)
     pos = np.where(mask[..., None], pos, 0.0)
-    states, rms, cov = _fit(
+    # padded to the ladder's sizes: samples past the last (masked out, times still increasing),
+    # tracks repeating the last (dropped from the result)
+    n, size = t.shape
+    extra = _bucket(size) - size
+    t = np.concatenate([t, t[:, -1:] + PAD_STEP * np.arange(1, extra + 1)], axis=1)
+    pos = np.concatenate([pos, np.zeros((n, extra, 2))], axis=1)
+    mask = np.concatenate([mask, np.zeros((n, extra), dtype=bool)], axis=1)
+    force = np.concatenate([force, np.repeat(force[:, -1:], extra, axis=1)], axis=1)
+    rows = np.minimum(np.arange(_bucket(n)), n - 1)
+    states, rms, cov = _FIT(
         model,
-        jnp.asarray(guess),
-        jnp.asarray(t),
-        jnp.asarray(_refine(t)),
-        jnp.asarray(pos),
-        jnp.asarray(mask, dtype=float),
-        jnp.asarray(force),
-        jnp.asarray(counts - 1),
+        jnp.asarray(guess[rows]),
+        jnp.asarray(t[rows]),
+        jnp.asarray(_refine(t[rows])),
+        jnp.asarray(pos[rows]),
+        jnp.asarray(mask[rows], dtype=float),
+        jnp.asarray(force[rows]),
+        jnp.asarray(counts[rows] - 1),
     )
+    states, rms, cov = (np.asarray(a)[:n] for a in (states, rms, cov))
     if covariance:
-        return np.asarray(states), np.asarray(rms), np.asarray(cov)
-    return np.asarray(states), np.asarray(rms)
+        return states, rms, cov
+    return states, rms
 
 
 def forecast(
