@@ -174,35 +174,54 @@ def compile_times(ds, path: Path) -> None:
     rollout_compile_times(path)
 
 
-#: A new process's first rollout of a model over 5 s of the test split (what ``fhnn evaluate``
-#: runs), in seconds less the same rollout compiled; ``$EQX_ON_ERROR`` and ``$FHNN_EXECUTABLES`` as
-#: the caller sets them.
-_ROLLOUT = (
-    "import sys, time; sys.path.insert(0, 'benchmarks'); from fhnn.runtime import use_compilation_cache;"
-    "use_compilation_cache(sys.argv[1]); from _common import seconds_per_call;"
-    "from fhnn.data.dataset import read_dataset; from fhnn.models.registry import MODELS;"
-    "from fhnn.training.run import RunConfig;"
-    "ds = read_dataset(sys.argv[2]); kind = MODELS['fhnn'];"
-    "m = kind.make(RunConfig().model, kind.arguments(ds), 0); sp = ds.test; t = sp.t[..., :101];"
-    "t0 = time.perf_counter(); m.predict(sp.states, sp, t, 1e-10, 1e-10); first = time.perf_counter() - t0;"
-    "print(first - seconds_per_call(lambda: m.predict(sp.states, sp, t, 1e-10, 1e-10), 2))"
-)
-
-#: The same for the fit of ``fhnn predict --history`` (:func:`fhnn.evaluation.predict.estimate_states`)
-#: on the first samples of 4 test trajectories (positions with 1 mm noise): 19 samples, then 23 in
-#: a new process (another history length in the same rung of the padding ladder, 24).
-_FIT = (
+#: What a new process does before timing a program's first call: the compilation cache folder
+#: ``sys.argv[1]``, the data set ``sys.argv[2]`` and a default FHNN on it, ``m``.
+_SCRIPT_HEAD = (
     "import sys, time; sys.path.insert(0, 'benchmarks'); from fhnn.runtime import use_compilation_cache;"
     "use_compilation_cache(sys.argv[1]); from _common import seconds_per_call; import numpy as np;"
     "from fhnn.data.dataset import read_dataset; from fhnn.models.registry import MODELS;"
     "from fhnn.training.run import RunConfig; from fhnn.evaluation.predict import estimate_states;"
     "ds = read_dataset(sys.argv[2]); kind = MODELS['fhnn'];"
-    "m = kind.make(RunConfig().model, kind.arguments(ds), 0); sp = ds.test; k = int(sys.argv[3]);"
-    "t = np.tile(sp.t[:k], (4, 1)); rng = np.random.default_rng(0);"
+    "m = kind.make(RunConfig().model, kind.arguments(ds), 0); sp = ds.test;"
+)
+
+#: A new process's first rollout of a model over 5 s of the test split (what ``fhnn evaluate``
+#: runs), in seconds less the same rollout compiled; ``$EQX_ON_ERROR`` and ``$FHNN_EXECUTABLES`` as
+#: the caller sets them.
+_ROLLOUT = _SCRIPT_HEAD + (
+    "t = sp.t[..., :101];"
+    "t0 = time.perf_counter(); m.predict(sp.states, sp, t, 1e-10, 1e-10); first = time.perf_counter() - t0;"
+    "print(first - seconds_per_call(lambda: m.predict(sp.states, sp, t, 1e-10, 1e-10), 2))"
+)
+
+#: The same for the fit of ``fhnn predict --history`` (:func:`fhnn.evaluation.predict.estimate_states`)
+#: on the first ``sys.argv[3]`` samples of 4 test trajectories (positions with 1 mm noise).
+_FIT = _SCRIPT_HEAD + (
+    "k = int(sys.argv[3]); t = np.tile(sp.t[:k], (4, 1)); rng = np.random.default_rng(0);"
     "pos = sp.states[:4, :k, :2] + 1e-3 * rng.normal(size=(4, k, 2));"
     "t0 = time.perf_counter(); estimate_states(m, t, pos); first = time.perf_counter() - t0;"
     "print(first - seconds_per_call(lambda: estimate_states(m, t, pos), 2))"
 )
+
+
+def _first_calls(
+    script: str, path: Path, env: dict[str, str], extra: tuple[str, str] = ("", "")
+) -> list[float]:
+    """What ``script`` prints (a first call's seconds) in two new processes sharing an empty
+    compilation cache folder, the second after the first; ``extra``: each one's third argument."""
+    with tempfile.TemporaryDirectory() as cache:
+        return [
+            float(
+                subprocess.run(
+                    [sys.executable, "-c", script, cache, str(path), arg],
+                    capture_output=True,
+                    text=True,
+                    env={**os.environ, **env},
+                    check=True,
+                ).stdout.split()[-1]
+            )
+            for arg in extra
+        ]
 
 
 def rollout_compile_times(path: Path) -> None:
@@ -220,20 +239,7 @@ def rollout_compile_times(path: Path) -> None:
         ("store off", "nan", "off"),
         ("store off, raise", "raise", "off"),
     ):
-        with tempfile.TemporaryDirectory() as cache:
-            env = {**os.environ, "EQX_ON_ERROR": mode, STORE_ENV: store}
-            rows[label] = first, second = [
-                float(
-                    subprocess.run(
-                        [sys.executable, "-c", _ROLLOUT, cache, str(path)],
-                        capture_output=True,
-                        text=True,
-                        env=env,
-                        check=True,
-                    ).stdout.split()[-1]
-                )
-                for _ in range(2)
-            ]
+        rows[label] = first, second = _first_calls(_ROLLOUT, path, {"EQX_ON_ERROR": mode, STORE_ENV: store})
         print(
             f"  {label:17s} (EQX_ON_ERROR={mode:5s})  first process {first:6.2f} s, "
             f"second process {second:6.2f} s"
@@ -244,22 +250,11 @@ def rollout_compile_times(path: Path) -> None:
         f"(ratio {rows['store off'][1] / stored:.1f}); against Equinox's default: "
         f"{rows['store off, raise'][1]:.2f} s (ratio {rows['store off, raise'][1] / stored:.1f})"
     )
+    # 19 samples, then 23 in a new process: another history length in the same rung (24) of the
+    # fit's padding ladder
     print("   fhnn predict's fit of a history, first call less a compiled one (4 tracks, 19 then 23 samples)")
     for label, store in (("stored", "on"), ("store off", "off")):
-        with tempfile.TemporaryDirectory() as cache:
-            env = {**os.environ, STORE_ENV: store}
-            first, second = (
-                float(
-                    subprocess.run(
-                        [sys.executable, "-c", _FIT, cache, str(path), samples],
-                        capture_output=True,
-                        text=True,
-                        env=env,
-                        check=True,
-                    ).stdout.split()[-1]
-                )
-                for samples in ("19", "23")
-            )
+        first, second = _first_calls(_FIT, path, {STORE_ENV: store}, ("19", "23"))
         print(f"  {label:10s} first process {first:6.2f} s, second process (another length) {second:6.2f} s")
 
 

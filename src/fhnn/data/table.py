@@ -189,11 +189,16 @@ def _times(path: Path, column: Any, origin: str | None = None) -> tuple[np.ndarr
                 f"{path}: column 't': its date-times are {'with' if zone else 'without'} a time zone "
                 f"and the run's clock ({origin}) is {'without' if zone else 'with'}; give them alike"
             )
-        start = int(np.datetime64(origin.removesuffix("Z"), "ns").astype(np.int64))
+        start = _origin_ns(origin)
     else:
         start = int(values[valid].min()) if valid.any() else 0
     seconds = np.where(valid, (values - start) / 1e9, np.nan)
     return seconds, origin if origin is not None else date_time(start, zone)
+
+
+def _origin_ns(origin: str) -> int:
+    """The date-time ``origin`` (as :func:`_times` returns it, "Z" for UTC) in nanoseconds since 1970."""
+    return int(np.datetime64(origin.removesuffix("Z"), "ns").astype(np.int64))
 
 
 def date_time(ns: int | np.ndarray, zone: str = "") -> Any:
@@ -225,8 +230,7 @@ def shift_times(table: Table, seconds: float) -> Table:
 def seconds_to_date_times(seconds: np.ndarray, origin: str) -> np.ndarray:
     """``seconds`` after the date-time ``origin`` (as :func:`_times` returns it) as ISO-8601 text
     (rounded to the nanosecond), with ``origin``'s zone."""
-    start = int(np.datetime64(origin.removesuffix("Z"), "ns").astype(np.int64))
-    ns = start + np.round(np.asarray(seconds, dtype=float) * 1e9).astype(np.int64)
+    ns = _origin_ns(origin) + np.round(np.asarray(seconds, dtype=float) * 1e9).astype(np.int64)
     return date_time(ns, "Z" if origin.endswith("Z") else "")
 
 
