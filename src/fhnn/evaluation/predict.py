@@ -70,29 +70,54 @@ def _fit(
         centre = jnp.sum(p * m[:, None], axis=0) / n
         scale = jnp.maximum(jnp.sqrt(jnp.sum((p - centre) ** 2 * m[:, None]) / (2 * n)), 1e-3)
 
-        def path(s: Array) -> Array:
-            return rk4_solve(f, s, ff)[::SUBSTEPS]
+        def evaluate(s: Array) -> tuple[Array, Array, Array]:
+            """The model's states at the samples ``(K, 4)``, their Jacobian in the start state
+            ``(K, 4, 4)`` and the scaled residuals ``(2K,)``: one pass of RK4 carrying the four
+            tangents beside the states."""
 
-        def residual(s: Array) -> Array:
-            return (((path(s)[:, :2] - p) / scale) * m[:, None]).ravel()
+            def states(s: Array) -> tuple[Array, Array]:
+                y = rk4_solve(f, s, ff)[::SUBSTEPS]
+                return y, y
 
-        def step(carry: tuple[Array, Array], _: None) -> tuple[tuple[Array, Array], None]:
-            s, damp = carry
-            r = residual(s)
-            jac = jax.jacfwd(residual)(s)
-            jtj, jtr = jac.T @ jac, jac.T @ r
+            jac, y = jax.jacfwd(states, has_aux=True)(s)
+            return y, jac, (((y[:, :2] - p) / scale) * m[:, None]).ravel()
+
+        def residual_jacobian(jac: Array) -> Array:
+            return (jac[:, :2, :] / scale * m[:, None, None]).reshape(-1, 4)
+
+        def step(carry: tuple[Array, ...], _: None) -> tuple[tuple[Array, ...], None]:
+            # evaluate the trial state; keep it if it lowers the cost (the first trial, the
+            # guess, always); then propose the next trial from the kept state's linearisation
+            s, y, jac, r, cost, damp, trial = carry
+            new = (trial, *evaluate(trial))
+            new_cost = jnp.sum(new[3] ** 2)
+            better = new_cost < cost
+            s, y, jac, r = (jnp.where(better, a, b) for a, b in zip(new, (s, y, jac, r), strict=True))
+            damp = jnp.where(jnp.isinf(cost), damp, jnp.where(better, damp * 0.3, damp * 10.0))
+            cost = jnp.where(better, new_cost, cost)
+            jr = residual_jacobian(jac)
+            jtj, jtr = jr.T @ jr, jr.T @ r
             delta = jnp.linalg.solve(jtj + damp * jnp.diag(jnp.diag(jtj) + 1e-12), -jtr)
-            better = jnp.sum(residual(s + delta) ** 2) < jnp.sum(r**2)
-            return (jnp.where(better, s + delta, s), jnp.where(better, damp * 0.3, damp * 10.0)), None
+            return (s, y, jac, r, cost, damp, s + delta), None
 
-        (s_fit, _), _ = jax.lax.scan(step, (s0, jnp.asarray(1e-3)), None, length=ITERATIONS)
-        states = path(s_fit)
+        k_samples = p.shape[0]
+        start = (
+            s0,
+            jnp.zeros((k_samples, 4)),
+            jnp.zeros((k_samples, 4, 4)),
+            jnp.zeros(2 * k_samples),
+            jnp.asarray(jnp.inf),
+            jnp.asarray(1e-3),
+            s0,
+        )
+        # ITERATIONS Gauss–Newton steps, each evaluated once, after the guess's own evaluation
+        (_, states, jac, r, _, _, _), _ = jax.lax.scan(step, start, None, length=ITERATIONS + 1)
         res = (states[:, :2] - p) * m[:, None]
         rms = jnp.sqrt(jnp.sum(res**2) / (2 * jnp.sum(m)))
-        jac = jax.jacfwd(residual)(s_fit)
-        variance = jnp.sum(residual(s_fit) ** 2) / jnp.maximum(2 * n - 4, 1)
-        cov_start = variance * jnp.linalg.pinv(jac.T @ jac)
-        carry = jax.jacfwd(lambda s: path(s)[k])(s_fit)
+        jr = residual_jacobian(jac)
+        variance = jnp.sum(r**2) / jnp.maximum(2 * n - 4, 1)
+        cov_start = variance * jnp.linalg.pinv(jr.T @ jr)
+        carry = jac[k]
         return states[k], rms, carry @ cov_start @ carry.T
 
     return jax.vmap(one)(guess, t, fine, pos, mask, force, last)
@@ -195,12 +220,16 @@ def forecast(
     ``(N, T)`` [s], with known forces ``force`` ``(N, T, 2)`` [N] at those times (linear between
     them; default none). Returns ``(states (N, T, 4), ok (N,))``; a rollout that blows up
     (beyond :data:`~fhnn.models.base.BLOW_UP` times its start's scale) or runs out of steps is
-    not ok."""
+    not ok. The batch is padded to a size of :func:`_bucket`'s ladder (its last rollout
+    repeated, then dropped), so forecasts of other numbers of tracks share a compiled rollout."""
     start = np.asarray(start, dtype=float)
     t = np.asarray(t, dtype=float)
     force = np.zeros((*t.shape, 2)) if force is None else np.asarray(force, dtype=float)
-    states, ok = model.solve(start, t, no_actuation(start.shape[0]), force, rtol, atol)
-    return states, np.asarray(ok) & np.all(np.isfinite(states), axis=(1, 2))
+    n = start.shape[0]
+    rows = np.minimum(np.arange(_bucket(n)), n - 1)
+    states, ok = model.solve(start[rows], t[rows], no_actuation(rows.size), force[rows], rtol, atol)
+    states, ok = np.asarray(states)[:n], np.asarray(ok)[:n]
+    return states, ok & np.all(np.isfinite(states), axis=(1, 2))
 
 
 #: Default span of a history fitted by :func:`predict_tracks` [s]: chosen on the validation
@@ -389,16 +418,21 @@ def predict_tracks(
         f = _forces_at(forcing_table, traj, times[i], required=True)
         if f is not None:
             forces[i] = f
-    states, ok = forecast(model, starts, times, forces)
-    drawn = None
+    n = len(ids)
+    draws = 0
     if cov is not None and samples > 0:
         rng = np.random.default_rng(seed)
-        n = len(ids)
         sym = 0.5 * (cov + cov.swapaxes(1, 2))
-        starts_s = np.stack(
+        drawn_starts = np.stack(
             [rng.multivariate_normal(starts[i], sym[i], samples, method="eigh") for i in range(n)], axis=1
         )
-        rep = lambda a: np.broadcast_to(a, (samples, *a.shape)).reshape(-1, *a.shape[1:])  # noqa: E731
-        out, fine = forecast(model, starts_s.reshape(-1, 4), rep(times), rep(forces))
-        drawn = np.where(fine[:, None, None], out, np.nan).reshape(samples, n, *out.shape[1:])
+        starts = np.concatenate([starts, drawn_starts.reshape(-1, 4)])
+        draws = samples
+    # the tracks' forecasts and those of their drawn start states, as one rollout
+    rep = lambda a: np.broadcast_to(a, (1 + draws, *a.shape)).reshape(-1, *a.shape[1:])  # noqa: E731
+    out, fine = forecast(model, starts, rep(times), rep(forces))
+    states, ok = out[:n], fine[:n]
+    drawn = None
+    if draws:
+        drawn = np.where(fine[n:, None, None], out[n:], np.nan).reshape(draws, n, *out.shape[1:])
     return Forecast(ids=ids, t=times, states=states, ok=ok, fit_rms=fit_rms, samples=drawn)

@@ -281,6 +281,14 @@ class Run:
         """A fresh model of this run's kind, configuration, build arguments and seed."""
         return MODELS[self.kind].make(self.model_config, self.args, self.train_config.seed)
 
+    def outline(self) -> AbstractModel:
+        """:meth:`skeleton`'s structure with ``jax.ShapeDtypeStruct`` for its arrays: what loading
+        a checkpoint and sizing windows need, without drawing (and compiling the draws of) the
+        initial weights."""
+        return eqx.filter_eval_shape(
+            MODELS[self.kind].make, self.model_config, self.args, self.train_config.seed
+        )
+
     def data_file(self) -> Path:
         """The data set the run was trained on, checked against its recorded SHA-256."""
         ref = self.meta.get("data")
@@ -318,7 +326,7 @@ class Run:
         ``train.shoot`` for a vector field) after checking that ``dataset``'s train and val splits
         hold such windows (:meth:`~fhnn.data.windows.Windows.check`; a
         :class:`~fhnn.errors.ConfigError` otherwise, saying how to shorten the multi-step loss's)."""
-        skeleton = self.skeleton()
+        skeleton = self.outline()
         window = skeleton.window
         if isinstance(skeleton, AbstractVectorField):  # a vector field takes the multi-step loss
             window = max(window, self.train_config.shoot)
@@ -504,13 +512,15 @@ class Run:
             raise DataFormatError(f"{info_path}: unreadable configuration ({exc})") from None
         meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed", "clock") if k in info}
         run = cls(folder, config, info["build_arguments"], meta)
-        skeleton = run.skeleton()
-        old = version == 1
+        old = version == 1  # a format-1 file lacks constants: they come from a real skeleton
+        skeleton = run.skeleton() if old else run.outline()
         model = _load_leaves(folder / "model.eqx", skeleton, FORMAT_1_CONSTANTS if old else ())
         best = _load_leaves(folder / "best.eqx", skeleton, FORMAT_1_CONSTANTS if old else ())
         opt_state = None
         if MODELS[kind].fit is None:
-            like = Trainer.optimizer_for(config.train).init(eqx.filter(skeleton, eqx.is_array))
+            init = Trainer.optimizer_for(config.train).init  # format 1 keeps a fresh state's arrays
+            params = eqx.filter(skeleton, _array_or_shape)
+            like = init(params) if old else eqx.filter_eval_shape(init, params)
             opt_state = _load_leaves(folder / "opt_state.eqx", like, FORMAT_1_NO_OPT_STATE if old else ())
         run.state = TrainState(
             model=model,
@@ -546,6 +556,11 @@ def _load_leaves(path: Path, like: Any, absent: tuple[str, ...] = ()) -> Any:
             f"{path}: checkpoint files missing or incompatible ({kind}: it does not hold this run's "
             "model; retrain, or restore the file)"
         ) from None
+
+
+def _array_or_shape(leaf: Any) -> bool:
+    """An array of a model or of its :meth:`Run.outline` (``eqx.is_array`` for either)."""
+    return eqx.is_array(leaf) or isinstance(leaf, jax.ShapeDtypeStruct)
 
 
 def _keep(_file: Any, like: Any) -> Any:
