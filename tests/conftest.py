@@ -7,15 +7,27 @@ executable, so results are unchanged and the suite spends less time in XLA. Comm
 subprocesses) use the same folder through ``$FHNN_JAX_CACHE``.
 """
 
+# ruff: noqa: E402  (XLA_FLAGS is set before anything imports JAX)
+
 from __future__ import annotations
 
+import os
+
+#: The suite is mostly compilation (hundreds of small programs, each run a few times), so it
+#: compiles as ``fhnn reproduce --quick``'s workers do (``fast_compile``: LLVM optimisation level
+#: 0): the same programs, run more slowly; the whole suite took 763 s against 981 s, back to back
+#: on 2 cores. Set before JAX starts its backend (nothing has imported JAX yet), here and in the
+#: subprocesses the tests start (they inherit it); checked equal to the package's flags below.
+TEST_XLA_FLAGS = "--xla_backend_optimization_level=0"
+if TEST_XLA_FLAGS not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {TEST_XLA_FLAGS}".strip()
+
 # isort: off
-import fhnn  # noqa: F401  (first of all: float64, and Equinox's runtime checks as NaN, fhnn.runtime)
+import fhnn  # noqa: F401  (before the rest: float64, and Equinox's runtime checks as NaN)
 
 # isort: on
 
 import atexit
-import os
 import shutil
 import tempfile
 
@@ -27,6 +39,7 @@ from hypothesis import HealthCheck, settings
 
 from fhnn.data.dataset import Dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
+from fhnn.experiments.executors import FAST_COMPILE_FLAGS
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
 from fhnn.runtime import CACHE_ENV, use_compilation_cache
 
@@ -41,6 +54,7 @@ else:
     _CACHE = tempfile.mkdtemp(prefix="fhnn-test-jax-cache-")
     atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
     os.environ[_SHARED] = _CACHE
+assert TEST_XLA_FLAGS == FAST_COMPILE_FLAGS, "the tests compile as fast_compile does"
 use_compilation_cache(_CACHE)
 os.environ[CACHE_ENV] = _CACHE
 
