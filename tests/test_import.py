@@ -933,6 +933,23 @@ def test_predict_keeps_the_clock_of_the_imported_table(tmp_path, capsys, monkeyp
         "2026-03-01T10:16:43.000Z",
     ]
     assert [r[2:] for r in rows] == [r[2:] for r in numeric]  # the same forecast
+    # a run made before runs recorded their clock reads it from its data set; without that, it
+    # says so and takes times as the model's own
+    old_run = tmp_path / "old_run"
+    shutil.copytree(run, old_run)
+    stored = json.loads((old_run / "run.json").read_text())
+    del stored["clock"]
+    (old_run / "run.json").write_text(json.dumps(stored))
+    assert Run.load(old_run).clock() == {"origin": None, "offset": 1000.0}
+    (old_run / "run.json").write_text(json.dumps({**stored, "data": "gone.h5"}))
+    assert "its data set 'gone.h5' is not where the run recorded it" in Run.load(old_run).clock()["unknown"]
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as info:
+        main(["predict", str(old_run), "--duration", "1", "--initial", "1,0,0.05,0.02", "--t0", "1.5"])
+    assert info.value.code == 0 and seen["t0"] == 1.5
+    assert f"note: the clock of the table behind {old_run} is unknown" in " ".join(
+        capsys.readouterr().err.split()
+    )
     # the learned time-dependent flow in flow.nc (fhnn inspect): over the training window, on the
     # table's clock
     learned = Run.load(run).state.best_model.flow

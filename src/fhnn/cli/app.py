@@ -829,6 +829,12 @@ def predict(
     # is that clock's `offset` (the imported table's first sample)
     clock = run.clock()
     origin, offset = clock["origin"], clock["offset"]
+    if "unknown" in clock:
+        err.print(
+            f"note: the clock of the table behind {run_dir} is unknown — {clock['unknown']}: times "
+            "are read as the model's own (its t = 0 the table's first sample)",
+            highlight=False,
+        )
     read_origin = SECONDS_ONLY if origin is None else origin
     tracks = read_table(history, read_origin) if history is not None else None
     forces = read_forcing(forcing, read_origin) if forcing is not None else None

@@ -267,14 +267,16 @@ class Run:
         ``{"origin": the date-time the table's seconds count from (None: the table gave
         seconds), "offset": seconds of that clock at the model's t = 0}``. A run on simulated
         data: origin None, offset 0. A run on imported data made before runs recorded it reads
-        it from its data file, or, where that is gone, takes origin None and offset 0."""
+        it from its data file, or, where that is gone, takes origin None and offset 0 and says
+        why under ``"unknown"`` (the caller tells the user: times are then the model's own)."""
         if "clock" in self.meta:
             return dict(self.meta["clock"])
         if self.meta.get("scenario") == IMPORTED and self.meta.get("data"):
             try:
                 return dataset_clock(self.dataset())
-            except (DataFormatError, OSError):
-                pass
+            except (DataFormatError, OSError) as exc:
+                unknown = f"the run predates recorded clocks and its data set is unreadable ({exc})"
+                return {"origin": None, "offset": 0.0, "unknown": unknown}
         return {"origin": None, "offset": 0.0}
 
     def skeleton(self) -> AbstractModel:
