@@ -135,6 +135,12 @@ def _bucket(n: int) -> int:
     return min(size for j in range(n.bit_length() + 1) for size in (2**j, 3 * 2**j) if size >= n)
 
 
+def _padded_rows(n: int) -> np.ndarray:
+    """Indices ``0 … n − 1`` then ``n − 1`` repeated, :func:`_bucket` ``(n)`` of them: a batch of
+    ``n`` padded to its rung by repeating its last row (the first ``n`` results are its own)."""
+    return np.minimum(np.arange(_bucket(n)), n - 1)
+
+
 def estimate_states(
     model: AbstractVectorField,
     t: np.ndarray,
@@ -190,7 +196,7 @@ def estimate_states(
     pos = np.concatenate([pos, np.zeros((n, extra, 2))], axis=1)
     mask = np.concatenate([mask, np.zeros((n, extra), dtype=bool)], axis=1)
     force = np.concatenate([force, np.repeat(force[:, -1:], extra, axis=1)], axis=1)
-    rows = np.minimum(np.arange(_bucket(n)), n - 1)
+    rows = _padded_rows(n)
     states, rms, cov = _FIT(
         model,
         jnp.asarray(guess[rows]),
@@ -226,7 +232,7 @@ def forecast(
     t = np.asarray(t, dtype=float)
     force = np.zeros((*t.shape, 2)) if force is None else np.asarray(force, dtype=float)
     n = start.shape[0]
-    rows = np.minimum(np.arange(_bucket(n)), n - 1)
+    rows = _padded_rows(n)
     states, ok = model.solve(start[rows], t[rows], no_actuation(rows.size), force[rows], rtol, atol)
     states, ok = np.asarray(states)[:n], np.asarray(ok)[:n]
     return states, ok & np.all(np.isfinite(states), axis=(1, 2))
