@@ -75,6 +75,7 @@ def main() -> None:
     p.add_argument("--model", default="{}", help="JSON of FHNNConfig options")
     p.add_argument("--train", default="{}", help="JSON of TrainConfig options overriding the plan")
     p.add_argument("--plan", default=None, help="a named plan (default: what fhnn train uses)")
+    p.add_argument("--data-seed", type=int, default=None, help="data seed (default: the scenario's)")
     args = p.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     cache = default_cache_dir()  # as every fhnn command: a second run loads its programs
@@ -85,7 +86,7 @@ def main() -> None:
     print(f"fhnn {fhnn.__version__}; options {options}")
     report = {}
     if args.only in (None, "solid"):
-        ds, run, secs = train("solid_body_vortex", args.out, options, args.plan)
+        ds, run, secs = train("solid_body_vortex", args.out, options, args.plan, seed=args.data_seed)
         res = evaluate(run.state.best_model, ds, [1, 5, 60])["horizons"]
         print(f"solid_body_vortex: trained in {secs:.0f} s (budget 600 s)")
         for h, target, paper in (("1", 1e-5, 1.07e-4), ("5", 6e-5, 6.09e-4), ("60", 0.35, 3.51)):
@@ -97,7 +98,7 @@ def main() -> None:
             )
         report["solid_body_vortex"] = {"seconds": secs, "metrics": res}
     if args.only in (None, "steady"):
-        ds, run, secs = train("steady_vortex", args.out, options, args.plan)
+        ds, run, secs = train("steady_vortex", args.out, options, args.plan, seed=args.data_seed)
         res = evaluate(run.state.best_model, ds, [1, 5, 60])["horizons"]
         coef = coefficient_recovery(run.state.best_model.coefficients, ds)
         flow = flow_recovery(run.state.best_model.flow, ds)

@@ -1,5 +1,6 @@
 """FHNN model, training, checkpoints, rollout and metrics."""
 
+import dataclasses
 import itertools
 import json
 import re
@@ -498,3 +499,40 @@ def test_a_run_stored_before_the_harmonic_time_basis_loads_with_the_papers_form(
     assert loaded.model_config.time_modes == 0 and loaded.best_model.flow.mlp.in_size == 3
     for a, b in zip(arrays(loaded.best_model), arrays(run.state.best_model), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+@pytest.mark.parametrize("power", [2.0, 12.0])
+def test_slow_weight_weighs_each_window_by_its_relative_speed(data, power):
+    """``slow_weight = p``: each window's data terms weighted by ``min((σ̃/σ)^p, cap)`` over the
+    batch's mean, σ the window's start relative speed under the model, σ̃ the batch median —
+    checked against the unweighted terms of one window at a time."""
+    from fhnn.data.windows import Windows
+    from fhnn.models.fhnn import SLOW_WEIGHT_CAP, build_fhnn
+
+    args = build_arguments(data)
+    model = build_fhnn(FHNNConfig(width=8, slow_weight=power), key=jax.random.PRNGKey(3), **args)
+    # a flow that is not zero, so that σ is not the body's own speed
+    model = eqx.tree_at(lambda m: m.eom.flow.quadratic, model, jnp.asarray([0.3, 0.1, -0.2]))
+    plain = dataclasses.replace(model, slow_weight=0.0)
+    assert plain.slow_weight == 0.0 and model.slow_weight == power
+    pairs = Windows.of(data.train, 2)
+    spread = np.linspace(0, len(pairs) - 1, 40).astype(int)  # windows of many trajectories
+    batch = {k: v[spread] for k, v in pairs.as_jax().items()}
+    scales = (jnp.asarray([0.5, 0.4, 0.2, 0.3]), jnp.asarray([0.02, 0.03, 0.01, 0.01]))
+    terms = eqx.filter_jit(lambda m, b: m.loss_terms(b, scales))
+    one = [terms(plain, {k: v[i : i + 1] for k, v in batch.items()}) for i in range(40)]
+    sigma = np.asarray(jax.vmap(model.eom.relative_speed)(batch["s"][:, 0], batch["t"][:, 0]))
+    raw = (np.median(sigma) / sigma) ** power
+    weight = np.minimum(raw, SLOW_WEIGHT_CAP)
+    weight /= weight.mean()
+    weighted, unweighted = terms(model, batch), terms(plain, batch)
+    for name in ("deriv", "step"):
+        per = np.asarray([float(t[name]) for t in one])
+        assert float(weighted[name]) == pytest.approx(np.mean(weight * per), rel=1e-12)
+        assert float(unweighted[name]) == pytest.approx(np.mean(per), rel=1e-12)
+        assert float(weighted[name]) != pytest.approx(float(unweighted[name]), rel=1e-3)
+    # the slowest windows weigh most; at p = 12 the cap binds
+    assert weight[np.argmin(sigma)] == weight.max() and weight[np.argmax(sigma)] == weight.min()
+    assert (raw.max() > SLOW_WEIGHT_CAP) == (power == 12.0)
+    with pytest.raises(ConfigError, match="slow_weight"):
+        FHNNConfig(slow_weight=-1.0)

@@ -174,7 +174,9 @@ class AbstractVectorField(AbstractModel):
         ``W ≥ 3`` samples also ``"shoot"``: RK4 from ``s_0`` through every sample time of the
         window, the MSE of the predicted positions at samples ``1 … W−1`` (normalised by the
         positions' one-step scale) — weighed by the inverse of its covariance under the window's
-        start errors where the batch holds ``"start_var"`` (:func:`start_error_weighted`)."""
+        start errors where the batch holds ``"start_var"`` (:func:`start_error_weighted`). Where
+        the batch holds ``"weight"`` ``(B,)`` (mean 1), each term is that weighted mean over the
+        windows."""
         deriv_scale, step_scale = scales
         width = batch["s"].shape[1]
 
@@ -186,9 +188,17 @@ class AbstractVectorField(AbstractModel):
             return d0, rk4_solve(f, s[0], t)[1:]
 
         pred_d, pred_path = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
+        weight = batch.get("weight")
+        if weight is None:
+            mean = jnp.mean
+        else:  # per-window weights (B,) of mean 1: a weighted mean over the windows
+
+            def mean(x: Array) -> Array:
+                return jnp.mean(weight * jnp.mean(x.reshape(x.shape[0], -1), axis=1))
+
         terms = {
-            "deriv": jnp.mean(((pred_d - batch["deriv"][:, 0]) / deriv_scale) ** 2),
-            "step": jnp.mean(((pred_path[:, 0] - batch["s"][:, 1]) / step_scale) ** 2),
+            "deriv": mean(((pred_d - batch["deriv"][:, 0]) / deriv_scale) ** 2),
+            "step": mean(((pred_path[:, 0] - batch["s"][:, 1]) / step_scale) ** 2),
         }
         if width > 2:
             resid = (pred_path[..., :2] - batch["s"][:, 1:, :2]) / step_scale[:2]
@@ -196,7 +206,7 @@ class AbstractVectorField(AbstractModel):
                 resid_sq = start_error_weighted(resid, batch["t"], batch["start_var"])
             else:
                 resid_sq = resid**2
-            terms["shoot"] = jnp.mean(resid_sq)
+            terms["shoot"] = mean(resid_sq)
         terms.update(self.regularization(batch["s"][:, 0], batch["t"][:, 0]))
         return terms
 
