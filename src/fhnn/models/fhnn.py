@@ -22,10 +22,12 @@ reports the total as ``drag``); ``linear_drag="net"`` is the paper's form, all f
 ``g_φ(r, σ)``. Because an error in the total drag ``K(σ)`` costs a window in proportion to σ², an
 unweighted loss hardly sees the slow windows that fix ``c_l = K(0)``: on exact ``steady_vortex``
 data the fit left ``K`` exact above σ = 0.05 m/s and 0.2–0.8 % off below it (1 % of the windows),
-``c_l`` 0.8–1.0 % high and ``c_q`` 4–10 % low at slow speeds. ``slow_weight = 2`` (the default
-plan's, :data:`fhnn.training.plans.AUTO_SLOW_WEIGHT`) weighs each window by ``(σ̃/σ)²`` so that a
-relative error of ``K`` costs alike at every speed: ``c_l`` 0.17 % and 0.20 % off on two data
-seeds (:meth:`FHNN.loss_terms`).
+``c_l`` 0.8–1.0 % high and ``c_q`` 4–10 % low at slow speeds. ``slow_weight = 2`` weighs each
+window by ``(σ̃/σ)²`` so that a relative error of ``K`` costs alike at every speed
+(:meth:`FHNN.loss_terms`): there ``c_l`` came out 0.17, 0.20 and 0.01 % off on three data seeds. It is
+not the default: in a full reproduction with it (``docs/benchmarks/slow_weight.txt``) it broke
+``obstacle`` (masses 0.6 → 24 % off, RMSE(pos) at 5 s 13× worse) and ``wave`` (``c_l`` 1.9 →
+9.2 %, 12× worse), and on estimated velocities it made the drag worse.
 
 Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
 constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
@@ -125,8 +127,9 @@ class FHNNConfig(Config):
             steady flow.
         slow_weight: exponent ``p`` of the weight ``min((σ̃/σ)^p, SLOW_WEIGHT_CAP)`` of each
             training window in the data loss, ``σ`` the relative speed at its start under the
-            current model, ``σ̃`` the batch's median (see :meth:`FHNN.loss_terms`); 0: every
-            window alike.
+            current model, ``σ̃`` the batch's median (see :meth:`FHNN.loss_terms`); 0 (default):
+            every window alike. 2 settles the drag split on ``steady_vortex`` but not on every
+            scenario (module docstring).
     """
 
     config_name = "fhnn"

@@ -52,22 +52,6 @@ class TrainingPlan:
 #: Lamb–Oseen vortex it does not) 0.15 — the threshold sits two decades above the first.
 AUTO_WARMUP_ACCEPT = 1e-6
 
-#: ``model.slow_weight`` of ``auto`` for FHNN (:class:`~fhnn.models.fhnn.FHNNConfig`): each
-#: training window weighted by ``(σ̃/σ)²`` (capped at 50). The drag is ``K(σ)·v_rel`` with
-#: ``K = ½ρA c_q(σ) σ + c_l``, so an error in ``K`` costs a window in proportion to σ²; the
-#: exponent 2 makes a relative error of ``K`` cost alike at every speed, and was not tuned (the
-#: one value tried). Unweighted, the fit leaves ``K`` 0.2–0.8 % off below σ = 0.05 m/s (1 % of the
-#: windows) and exact above, and ``c_l = K(0)`` inherits it: on ``steady_vortex`` (default plan,
-#: ``benchmarks/fhnn_targets.py --only steady``; ``docs/benchmarks/slow_weight.txt``) c_l 0.82 →
-#: 0.17 % off and c_q in the σ bands with ≥ 20 % quadratic share 4.20 / 2.58 / 1.90 / 1.42 / 0.89
-#: → 0.98 / 0.59 / 0.41 / 0.31 / 0.23 % (data seed 0); data seed 1, not used before the choice:
-#: c_l 0.20 %, bands 1.06 / 0.61 / 0.45 / 0.34 / 0.22 %; flow 0.010 → 0.009 %; the test split's
-#: RMSE(pos) at 5 s 9.95e-6 → 1.88e-5 m (seed 0), so the fit of the fast windows pays a little.
-#: ``solid_body_vortex``: 1.37e-6 → 7.5e-7 m at 5 s. Not for estimated velocities (the
-#: multi-step loss, no plan): on issue 14's noisy positions it made c_l 2.2 → 5.4 % off (slow
-#: windows are noise there, and σ itself is estimated).
-AUTO_SLOW_WEIGHT = 2.0
-
 #: The plan ``fhnn train`` and :func:`fhnn.train` use when none is named.
 DEFAULT_PLAN = "auto"
 
@@ -81,8 +65,7 @@ PLANS: dict[str, TrainingPlan] = {
             "(the warmup-polish route), otherwise it is discarded and 20,000 Adam steps and the "
             "polish (10,000) follow from the initial model (the adam-polish route); models without a "
             "warm-up part take the second route; 4,000 pairs. Where derivatives are measured the "
-            "loss is the derivative loss alone (no one-step loss), there is no flow penalty, and "
-            "FHNN weighs each window by (median σ / σ)², capped at 50 (model.slow_weight=2)",
+            "loss is the derivative loss alone (no one-step loss) and there is no flow penalty",
             TrainConfig(
                 warmup_steps=400,
                 warmup_accept=AUTO_WARMUP_ACCEPT,
@@ -124,7 +107,7 @@ PLANS: dict[str, TrainingPlan] = {
                 # none on all five actuated scenarios (data seed 0), for 20-35 % of the training time
                 lambda_flow=0.0,
             ),
-            model={"fhnn": {"width": 32, "slow_weight": AUTO_SLOW_WEIGHT}},
+            model={"fhnn": {"width": 32}},
         ),
         TrainingPlan(
             "adam", "20,000 Adam steps, piecewise-constant rate (the paper's optimiser)", TrainConfig()
@@ -248,7 +231,6 @@ def get_plan(name: str) -> TrainingPlan:
 
 
 __all__ = [
-    "AUTO_SLOW_WEIGHT",
     "AUTO_WARMUP_ACCEPT",
     "DEFAULT_PLAN",
     "ESTIMATED_VELOCITY_LR_C_L",
