@@ -20,6 +20,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import equinox as eqx
@@ -32,11 +33,8 @@ from jax.flatten_util import ravel_pytree
 from fhnn.data.dataset import read_dataset
 from fhnn.data.windows import LossScales, Windows
 from fhnn.evaluation.recovery import coefficient_recovery
-from fhnn.physics.actuation import forcing
-from fhnn.physics.integrators import rk4_step
+from fhnn.models.fhnn import slow_window_weights
 from fhnn.training.run import Run
-
-CAP = 50.0
 
 
 def curve(model) -> None:
@@ -53,6 +51,7 @@ def curve(model) -> None:
 
 
 def polish(model, ds, power: float, iterations: int, pairs: int) -> None:
+    model = dataclasses.replace(model, slow_weight=0.0)  # the weights below, held fixed, and no others
     rng = np.random.default_rng(0)
     tw, vw = Windows.of(ds.train, 2), Windows.of(ds.val, 2)
     tw = tw.subset(np.sort(rng.choice(len(tw), pairs, replace=False)))
@@ -61,32 +60,20 @@ def polish(model, ds, power: float, iterations: int, pairs: int) -> None:
     scales = (jnp.asarray(sc.deriv), jnp.asarray(sc.step))
     tb, vb = tw.as_jax(), vw.as_jax()
 
-    def unweighted(m, b):
+    def loss(m, b):  # derivative + one-step loss; weighted where b holds "weight"
         t = m.loss_terms(b, scales)
         return t["deriv"] + t["step"]
 
-    def weighted(m, b, w):
-        def one(s, t, a, r):
-            f = lambda x, tt: m(x, tt, forcing(a, tt, t, r))  # noqa: E731
-            d0 = f(s[0], t[0])
-            return d0, rk4_step(f, s[0], t[0], t[1] - t[0], k1=d0)
-
-        d, s1 = jax.vmap(one)(b["s"], b["t"], b["act"], b["dforce"])
-        ed = jnp.mean(((d - b["deriv"][:, 0]) / scales[0]) ** 2, axis=1)
-        es = jnp.mean(((s1 - b["s"][:, 1]) / scales[1]) ** 2, axis=1)
-        return jnp.mean(w * (ed + es))
-
     if power > 0:
         sig = jax.vmap(model.eom.relative_speed)(tb["s"][:, 0], tb["t"][:, 0])
-        w = jnp.minimum((jnp.median(sig) / sig) ** power, CAP)
-        w = w / jnp.mean(w)
+        w = slow_window_weights(sig, power)
     else:
         w = jnp.ones(len(tw))
     share = float(jnp.sort(w)[-pairs // 100 :].sum() / w.sum())
     print(f"weights: max {float(w.max())}, share of the 1 % slowest pairs {share}")
     params, static = eqx.partition(model, eqx.is_inexact_array)
     flat, unravel = ravel_pytree(params)
-    objective = lambda f: weighted(eqx.combine(unravel(f), static), tb, w)  # noqa: E731
+    objective = lambda f: loss(eqx.combine(unravel(f), static), {**tb, "weight": w})  # noqa: E731
     opt = optax.lbfgs(memory_size=100)
 
     @jax.jit
@@ -95,7 +82,7 @@ def polish(model, ds, power: float, iterations: int, pairs: int) -> None:
         u, state = opt.update(g, state, f, value=v, grad=g, value_fn=objective)
         return optax.apply_updates(f, u), state
 
-    val = jax.jit(lambda f: unweighted(eqx.combine(unravel(f), static), vb))
+    val = jax.jit(lambda f: loss(eqx.combine(unravel(f), static), vb))
     state, t0 = opt.init(flat), time.perf_counter()
 
     def report(f, i):

@@ -246,6 +246,13 @@ class CoefficientNet(AbstractCoefficients):
         return cap(z, jnp.asarray(self.caps), self.cap_map) * _const(self.mask)
 
 
+def slow_window_weights(sigma: Array, power: float) -> Array:
+    """Weights ``(B,)`` of windows whose start relative speeds are ``sigma`` ``(B,)`` [m/s]:
+    ``min((σ̃/σ)^power, SLOW_WEIGHT_CAP)`` over their mean, ``σ̃`` the median of ``sigma``."""
+    weight = jnp.minimum((jnp.median(sigma) / sigma) ** power, SLOW_WEIGHT_CAP)
+    return weight / jnp.mean(weight)
+
+
 def harmonic_basis(tau: Array, modes: int) -> Array:
     """``(1, cos(πjτ) for j = 1 … modes, sin(πjτ) for j = 1 … modes)`` at the scaled time ``τ``,
     shape ``(2·modes + 1,)``: on ``τ ∈ [0, 1]`` (the training window) it resolves every period
@@ -306,9 +313,7 @@ class FHNN(AbstractVectorField):
         slowest windows (``c_l = K(0)``), which an unweighted mean hardly sees."""
         if self.slow_weight > 0:
             sigma = jax.vmap(self.eom.relative_speed)(batch["s"][:, 0], batch["t"][:, 0])
-            sigma = jax.lax.stop_gradient(sigma)
-            weight = jnp.minimum((jnp.median(sigma) / sigma) ** self.slow_weight, SLOW_WEIGHT_CAP)
-            batch = {**batch, "weight": weight / jnp.mean(weight)}
+            batch = {**batch, "weight": slow_window_weights(jax.lax.stop_gradient(sigma), self.slow_weight)}
         return super().loss_terms(batch, scales)
 
     def warmup(self) -> tuple[FHNN, Callable[[FHNN], FHNN]] | None:
