@@ -9,12 +9,14 @@ Two measurements behind ``model.slow_weight`` (``docs/benchmarks/slow_weight.txt
   training pairs, derivative and one-step loss) with each pair weighted by ``min((σ̃/σ)^p, 50)``
   (``--power p``; σ under the model at the polish's start, held fixed; σ̃ the median), or unweighted
   with ``--power 0`` — printing every 500 iterations the unweighted validation loss on as many
-  validation pairs, ``c_l``'s and the masses' errors and ``c_q``'s per σ band.
+  validation pairs, ``c_l``'s and the masses' errors and ``c_q``'s per σ band; ``--part
+  coefficients`` moves the coefficient net alone, the flow held where it is.
 
 Usage::
 
     python benchmarks/slow_weight.py curve RUN DATA
     python benchmarks/slow_weight.py polish RUN DATA [--power 2] [--iterations 3000] [--pairs 8000]
+        [--part all|coefficients]
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ def curve(model) -> None:
             print(f" {s:.3f} {c:.4f} {t:.4f} {c / t - 1:+.3%} {k / kt - 1:+.3%}")
 
 
-def polish(model, ds, power: float, iterations: int, pairs: int) -> None:
+def polish(model, ds, power: float, iterations: int, pairs: int, part: str = "all") -> None:
     model = dataclasses.replace(model, slow_weight=0.0)  # the weights below, held fixed, and no others
     rng = np.random.default_rng(0)
     tw, vw = Windows.of(ds.train, 2), Windows.of(ds.val, 2)
@@ -71,7 +73,14 @@ def polish(model, ds, power: float, iterations: int, pairs: int) -> None:
         w = jnp.ones(len(tw))
     share = float(jnp.sort(w)[-pairs // 100 :].sum() / w.sum())
     print(f"weights: max {float(w.max())}, share of the 1 % slowest pairs {share}")
-    params, static = eqx.partition(model, eqx.is_inexact_array)
+    if part == "coefficients":  # the coefficient net alone; the flow held where it is
+        spec = jax.tree.map(lambda _: False, model)
+        spec = eqx.tree_at(
+            lambda m: m.eom.coefficients, spec, jax.tree.map(eqx.is_inexact_array, model.eom.coefficients)
+        )
+        params, static = eqx.partition(model, spec)
+    else:
+        params, static = eqx.partition(model, eqx.is_inexact_array)
     flat, unravel = ravel_pytree(params)
     objective = lambda f: loss(eqx.combine(unravel(f), static), {**tb, "weight": w})  # noqa: E731
     opt = optax.lbfgs(memory_size=100)
@@ -109,12 +118,13 @@ def main() -> None:
     p.add_argument("--power", type=float, default=2.0)
     p.add_argument("--iterations", type=int, default=3000)
     p.add_argument("--pairs", type=int, default=8000)
+    p.add_argument("--part", choices=["all", "coefficients"], default="all", help="what the polish moves")
     args = p.parse_args()
     model = Run.load(args.run).state.best_model
     if args.what == "curve":
         curve(model)
     else:
-        polish(model, read_dataset(args.data), args.power, args.iterations, args.pairs)
+        polish(model, read_dataset(args.data), args.power, args.iterations, args.pairs, args.part)
 
 
 if __name__ == "__main__":

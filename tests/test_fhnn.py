@@ -536,3 +536,56 @@ def test_slow_weight_weighs_each_window_by_its_relative_speed(data, power):
     assert (raw.max() > SLOW_WEIGHT_CAP) == (power == 12.0)
     with pytest.raises(ConfigError, match="slow_weight"):
         FHNNConfig(slow_weight=-1.0)
+
+
+def test_quasi_newton_phases_hold_the_slow_window_weights_fixed(data):
+    """Under ``slow_weight`` the trainer's quasi-Newton phases weigh each window as the model they
+    start from does, and hold those weights: the phase's objective then has the gradient it is
+    given (central differences along it agree to 1e-6), where the weights
+    recomputed at every point, their derivative left out, do not (a line search on them fails).
+    The polish's first record is that objective at its start."""
+    from fhnn.data.windows import Windows
+    from fhnn.models.fhnn import build_fhnn, slow_window_weights
+    from fhnn.training.trainer import Trainer, data_loss, quasi_newton_objective
+
+    args = build_arguments(data)
+    model = build_fhnn(FHNNConfig(width=8, slow_weight=2.0), key=jax.random.PRNGKey(3), **args)
+    model = eqx.tree_at(lambda m: m.eom.flow.quadratic, model, jnp.asarray([0.3, 0.1, -0.2]))
+    pairs = Windows.of(data.train, 2)
+    batch = {k: v[np.linspace(0, len(pairs) - 1, 40).astype(int)] for k, v in pairs.as_jax().items()}
+    sigma = jax.vmap(model.eom.relative_speed)(batch["s"][:, 0], batch["t"][:, 0])
+    weight = model.quasi_newton_weights(batch)
+    np.testing.assert_allclose(weight, slow_window_weights(sigma, 2.0), rtol=1e-13)
+    assert dataclasses.replace(model, slow_weight=0.0).quasi_newton_weights(batch) is None
+
+    config = TrainConfig(w_step=1.0)
+    scales = (jnp.asarray([0.5, 0.4, 0.2, 0.3]), jnp.asarray([0.02, 0.03, 0.01, 0.01]))
+    params, static = eqx.partition(model, eqx.is_array)
+    flat, unravel = jax.flatten_util.ravel_pytree(params)
+
+    def mismatch(b):  # along the gradient (the model's constants, of zero gradient, stay put)
+        f = lambda x: quasi_newton_objective(unravel(x), static, b, scales, config)  # noqa: E731
+        grad = jax.grad(f)(flat)
+        direction, slope, h = grad / jnp.linalg.norm(grad), float(jnp.linalg.norm(grad)), 1e-5
+        return (
+            abs((float(f(flat + h * direction)) - float(f(flat - h * direction))) / (2 * h) - slope) / slope
+        )
+
+    assert mismatch({**batch, "weight": weight}) < 1e-6
+    assert mismatch(batch) > 1e-3
+
+    trainer = Trainer(TrainConfig(lbfgs_steps=1, lbfgs_pairs=64, val_every=1), data.train, data.val)
+    state = trainer.polish(trainer.init(model))
+    qn = trainer.batch(trainer.quasi_newton_windows(), jax.random.PRNGKey(trainer.config.seed + 4))
+    held = data_loss(
+        model.loss_terms({**qn, "weight": model.quasi_newton_weights(qn)}, trainer.scales), trainer.config
+    )
+    assert state.history[-1]["train_loss"] == pytest.approx(float(held), rel=1e-12)
+    assert state.history[-1]["train_loss"] != pytest.approx(
+        float(
+            data_loss(
+                dataclasses.replace(model, slow_weight=0.0).loss_terms(qn, trainer.scales), trainer.config
+            )
+        ),
+        rel=1e-3,
+    )

@@ -156,6 +156,12 @@ class AbstractModel(eqx.Module):
         """Consecutive samples per training example (2: a transition pair)."""
         return 2
 
+    def quasi_newton_weights(self, batch: dict[str, Array]) -> Array | None:
+        """Weights ``(B,)`` (mean 1) of the windows of ``batch`` in the trainer's quasi-Newton
+        phases, computed once from the model a phase starts from and held fixed through it;
+        ``None`` (default): every window alike."""
+        return None
+
 
 class AbstractVectorField(AbstractModel):
     """A learned (or known) vector field ``ṡ = f(s, t, F_ext)``."""

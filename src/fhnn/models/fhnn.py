@@ -27,7 +27,12 @@ window by ``(σ̃/σ)²`` so that a relative error of ``K`` costs alike at every
 (:meth:`FHNN.loss_terms`): there ``c_l`` came out 0.17, 0.20 and 0.01 % off on three data seeds. It is
 not the default: in a full reproduction with it (``docs/benchmarks/slow_weight.txt``) it broke
 ``obstacle`` (masses 0.6 → 24 % off, RMSE(pos) at 5 s 13× worse) and ``wave`` (``c_l`` 1.9 →
-9.2 %, 12× worse), and on estimated velocities it made the drag worse.
+9.2 %, 12× worse), and on estimated velocities it made the drag worse. That reproduction's
+quasi-Newton phases recomputed the weights at every iterate, their derivative left out, which
+stalled L-BFGS; they now hold the weights of the model each phase starts from
+(:meth:`FHNN.quasi_newton_weights`): ``obstacle``'s masses then came out 1.0 / 1.1 % off, but its
+flow 1.3 % and ``wave``'s ``c_l`` 13.7 %, so it stays an option (``slow_weight = 1``: milder and
+mixed; numbers in the same file).
 
 Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
 constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
@@ -127,7 +132,8 @@ class FHNNConfig(Config):
             steady flow.
         slow_weight: exponent ``p`` of the weight ``min((σ̃/σ)^p, SLOW_WEIGHT_CAP)`` of each
             training window in the data loss, ``σ`` the relative speed at its start under the
-            current model, ``σ̃`` the batch's median (see :meth:`FHNN.loss_terms`); 0 (default):
+            current model (in the quasi-Newton phases: under the model the phase starts from, held
+            fixed), ``σ̃`` the batch's median (see :meth:`FHNN.loss_terms`); 0 (default):
             every window alike. 2 settles the drag split on ``steady_vortex`` but not on every
             scenario (module docstring).
     """
@@ -253,6 +259,12 @@ def slow_window_weights(sigma: Array, power: float) -> Array:
     return weight / jnp.mean(weight)
 
 
+@eqx.filter_jit
+def _relative_speeds(eom: EquationsOfMotion, states: Array, t: Array) -> Array:
+    """Relative speeds ``(B,)`` [m/s] at states ``(B, 4)`` and times ``(B,)``."""
+    return jax.vmap(eom.relative_speed)(states, t)
+
+
 def harmonic_basis(tau: Array, modes: int) -> Array:
     """``(1, cos(πjτ) for j = 1 … modes, sin(πjτ) for j = 1 … modes)`` at the scaled time ``τ``,
     shape ``(2·modes + 1,)``: on ``τ ∈ [0, 1]`` (the training window) it resolves every period
@@ -310,11 +322,23 @@ class FHNN(AbstractVectorField):
         relative speed under this model and ``σ̃`` the batch's median, held constant in the
         gradient. Why: the drag force is ``K(σ)·v_rel``, so an error in ``K`` costs a window in
         proportion to σ²; the split of ``K(σ) = ½ρA c_q(σ) σ + c_l`` into its parts rests on the
-        slowest windows (``c_l = K(0)``), which an unweighted mean hardly sees."""
-        if self.slow_weight > 0:
+        slowest windows (``c_l = K(0)``), which an unweighted mean hardly sees. Weights the batch
+        holds already (``"weight"``, e.g. :meth:`quasi_newton_weights` held by the trainer) are
+        used instead."""
+        if self.slow_weight > 0 and "weight" not in batch:
             sigma = jax.vmap(self.eom.relative_speed)(batch["s"][:, 0], batch["t"][:, 0])
             batch = {**batch, "weight": slow_window_weights(jax.lax.stop_gradient(sigma), self.slow_weight)}
         return super().loss_terms(batch, scales)
+
+    def quasi_newton_weights(self, batch: dict[str, Array]) -> Array | None:
+        """With ``slow_weight = p > 0``: :func:`slow_window_weights` ``(B,)`` of the windows of
+        ``batch`` under this model, which the trainer's quasi-Newton phases hold fixed (a weight
+        that moved with the iterate, its derivative left out, would make the objective and its
+        gradient disagree, and the line search fail); otherwise ``None``."""
+        if self.slow_weight <= 0:
+            return None
+        sigma = _relative_speeds(self.eom, batch["s"][:, 0], batch["t"][:, 0])
+        return slow_window_weights(sigma, self.slow_weight)
 
     def warmup(self) -> tuple[FHNN, Callable[[FHNN], FHNN]] | None:
         """With a linear far field: the model without its stream MLP (the linear flow and the

@@ -585,6 +585,9 @@ class Trainer:
         phase's time budget spent (:meth:`deadline`), ends the phase there."""
         cfg = self.config
         batch = self.batch(self.quasi_newton_windows(), jax.random.PRNGKey(cfg.seed + 4))
+        weights = start.quasi_newton_weights(batch)
+        if weights is not None:  # the model's window weights, held fixed through the phase
+            batch = {**batch, "weight": weights}
         params, static = eqx.partition(start, eqx.is_array)
         flat, unravel = ravel_pytree(params)
         scales = self.scales
