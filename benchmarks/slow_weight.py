@@ -35,7 +35,6 @@ from jax.flatten_util import ravel_pytree
 from fhnn.data.dataset import read_dataset
 from fhnn.data.windows import LossScales, Windows
 from fhnn.evaluation.recovery import coefficient_recovery
-from fhnn.models.fhnn import slow_window_weights
 from fhnn.training.run import Run
 
 
@@ -66,11 +65,8 @@ def polish(model, ds, power: float, iterations: int, pairs: int, part: str = "al
         t = m.loss_terms(b, scales)
         return t["deriv"] + t["step"]
 
-    if power > 0:
-        sig = jax.vmap(model.eom.relative_speed)(tb["s"][:, 0], tb["t"][:, 0])
-        w = slow_window_weights(sig, power)
-    else:
-        w = jnp.ones(len(tw))
+    weighted = dataclasses.replace(model, slow_weight=power)  # the library's weights under it
+    w = weighted.quasi_newton_weights(tb) if power > 0 else jnp.ones(len(tw))
     share = float(jnp.sort(w)[-pairs // 100 :].sum() / w.sum())
     print(f"weights: max {float(w.max())}, share of the 1 % slowest pairs {share}")
     if part == "coefficients":  # the coefficient net alone; the flow held where it is

@@ -262,9 +262,10 @@ def slow_window_weights(sigma: Array, power: float) -> Array:
 
 
 @eqx.filter_jit
-def _relative_speeds(eom: EquationsOfMotion, states: Array, t: Array) -> Array:
-    """Relative speeds ``(B,)`` [m/s] at states ``(B, 4)`` and times ``(B,)``."""
-    return jax.vmap(eom.relative_speed)(states, t)
+def _start_weights(eom: EquationsOfMotion, batch: dict[str, Array], power: float) -> Array:
+    """:func:`slow_window_weights` ``(B,)`` of the windows of ``batch`` from the relative speeds
+    at their starts under ``eom``."""
+    return slow_window_weights(jax.vmap(eom.relative_speed)(batch["s"][:, 0], batch["t"][:, 0]), power)
 
 
 def harmonic_basis(tau: Array, modes: int) -> Array:
@@ -328,8 +329,8 @@ class FHNN(AbstractVectorField):
         holds already (``"weight"``, e.g. :meth:`quasi_newton_weights` held by the trainer) are
         used instead."""
         if self.slow_weight > 0 and "weight" not in batch:
-            sigma = jax.vmap(self.eom.relative_speed)(batch["s"][:, 0], batch["t"][:, 0])
-            batch = {**batch, "weight": slow_window_weights(jax.lax.stop_gradient(sigma), self.slow_weight)}
+            weight = _start_weights(self.eom, batch, self.slow_weight)
+            batch = {**batch, "weight": jax.lax.stop_gradient(weight)}
         return super().loss_terms(batch, scales)
 
     def quasi_newton_weights(self, batch: dict[str, Array]) -> Array | None:
@@ -337,10 +338,7 @@ class FHNN(AbstractVectorField):
         ``batch`` under this model, which the trainer's quasi-Newton phases hold fixed (a weight
         that moved with the iterate, its derivative left out, would make the objective and its
         gradient disagree, and the line search fail); otherwise ``None``."""
-        if self.slow_weight <= 0:
-            return None
-        sigma = _relative_speeds(self.eom, batch["s"][:, 0], batch["t"][:, 0])
-        return slow_window_weights(sigma, self.slow_weight)
+        return _start_weights(self.eom, batch, self.slow_weight) if self.slow_weight > 0 else None
 
     def warmup(self) -> tuple[FHNN, Callable[[FHNN], FHNN]] | None:
         """With a linear far field: the model without its stream MLP (the linear flow and the
