@@ -65,6 +65,11 @@ def test_every_job_trains_with_the_default_plan_under_one_budget() -> None:
     assert config.model.fhnn.width == plan.model["fhnn"]["width"] != type(config.model.fhnn)().width
     fhnn_jobs = [j for j in build_grid(config)[1] if j.model == "fhnn"]
     assert {j.run.model.width for j in fhnn_jobs} == {plan.model["fhnn"]["width"]}
+    # the plan's slow-window weights on noise-free observations, none on noisy_flow's
+    weights = {(j.data.scenario, j.run.model.slow_weight) for j in fhnn_jobs}
+    assert {w for sc, w in weights if sc != "noisy_flow"} == {plan.model["fhnn"]["slow_weight"]} == {1.0}
+    assert {w for sc, w in weights if sc == "noisy_flow"} == {0.0}
+    assert {j.data.noisy for j in fhnn_jobs} == {True, False}
     assert {j.run.train.replace(seed=0) for j in build_grid(config)[1]} == {config.train}
 
 

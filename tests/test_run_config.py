@@ -3,6 +3,7 @@ must agree, resuming only with the stored settings, and run folders found from a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -14,7 +15,14 @@ from fhnn.cli.app import main
 from fhnn.config import read_settings_file
 from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.errors import ConfigError
-from fhnn.training.plans import AUTO_WARMUP_ACCEPT, DEFAULT_PLAN, PLANS, data_settings, default_settings
+from fhnn.training.plans import (
+    AUTO_WARMUP_ACCEPT,
+    DEFAULT_PLAN,
+    PLANS,
+    data_settings,
+    default_settings,
+    is_noisy,
+)
 from fhnn.training.run import RunConfig
 
 from .conftest import small_dataset
@@ -124,6 +132,7 @@ def test_a_new_run_without_a_plan_starts_from_the_default_plan(
     assert info["step"] == 6 and [r["step"] for r in info["history"] if "phase" not in r] == [2, 4]
     ds = read_dataset(data_file)
     assert default_settings(ds) == PLANS[DEFAULT_PLAN].settings("fhnn")
+    assert ds.obs_noise == 0 and info["model_config"]["slow_weight"] == 1.0  # noise-free: weighted
     # measured derivatives: the plan's derivative loss alone, no flow penalty
     assert info["train_config"]["w_step"] == 0.0 and info["train_config"]["lambda_flow"] == 0.0
     assert data_settings(ds) == {}
@@ -134,6 +143,24 @@ def test_a_new_run_without_a_plan_starts_from_the_default_plan(
     assert (config.train.w_deriv, config.train.w_step, config.train.steps) == (0.0, 1.0, 20000)
     ds.extra["measured"] = ["positions"]  # velocities estimated (an imported table)
     assert default_settings(ds) == {}
+
+
+def test_the_default_plan_weighs_slow_windows_on_noise_free_observations_only(data_file: Path) -> None:
+    """The default plan's FHNN settings carry slow_weight 1 on noise-free observations and 0
+    where the observations carry noise (simulated noise, or an imported table's estimate); the
+    rest of the plan, and the baselines' settings, are the same for both."""
+    plan, clean = PLANS[DEFAULT_PLAN], read_dataset(data_file)
+    noisy = dataclasses.replace(clean, obs_noise=1e-3)
+    assert not is_noisy(clean) and is_noisy(noisy)
+    on, off = (RunConfig().with_settings(default_settings(d)) for d in (clean, noisy))
+    assert (on.model.slow_weight, off.model.slow_weight) == (1.0, 0.0)
+    assert on.model.replace(slow_weight=0.0) == off.model and on.train == off.train
+    assert on.model.width == off.model.width == 32
+    assert default_settings(noisy) == plan.settings("fhnn", noisy=True) != plan.settings("fhnn")
+    for kind in ("node", "hnn"):  # no model settings of the plan's: the same on both
+        assert default_settings(clean, kind) == default_settings(noisy, kind)
+    # a plan without noisy-observation settings is the same on both
+    assert PLANS["adam-polish"].settings("fhnn", noisy=True) == PLANS["adam-polish"].settings("fhnn")
 
 
 def test_resume_refuses_other_settings_and_runs_are_found_from_anywhere(

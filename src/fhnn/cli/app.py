@@ -34,7 +34,14 @@ from fhnn.files import check_new_folder, check_output_path
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import SCENARIOS, UNITS, scenario_class
 from fhnn.runtime import __version__, default_cache_dir, use_compilation_cache
-from fhnn.training.plans import DEFAULT_PLAN, PLANS, data_settings, default_settings, get_plan
+from fhnn.training.plans import (
+    DEFAULT_PLAN,
+    PLANS,
+    data_settings,
+    default_settings,
+    get_plan,
+    is_noisy,
+)
 
 # Typer >= 0.29 vendors its own click; older releases raise click's exceptions.
 _USAGE_ERRORS: tuple[type[Exception], ...] = (typer.TyperException,)
@@ -407,11 +414,12 @@ def train(
     if "model.ablation" in settings and settings["model.ablation"] != "none" and kind != "fhnn":
         raise ConfigError(f"--ablation applies to fhnn only, not {kind!r}")
     given = set(settings)
-    if plan is not None:  # the plan's settings, below any setting given
-        settings = {**get_plan(plan).settings(kind), **settings}
-    config = RunConfig().with_settings(settings)  # every setting checked before any work
+    # every setting checked before any work
+    RunConfig().with_settings({**(get_plan(plan).settings(kind) if plan is not None else {}), **settings})
     check_new_folder(out)
     dataset = read_dataset(data)
+    if plan is not None:  # the plan's settings for these data, below any setting given
+        settings = {**get_plan(plan).settings(kind, noisy=is_noisy(dataset)), **settings}
     # a new run without --plan starts from the default plan; a resumed run keeps what it stored
     start = default_settings(dataset, kind) if plan is None else {}
     implied = {k: v for k, v in data_settings(dataset).items() if k not in given}

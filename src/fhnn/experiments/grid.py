@@ -137,7 +137,9 @@ def reproduction_train() -> TrainConfig:
 
 def reproduction_models() -> Config:
     """Each model kind's configuration in the reproduction: its defaults with the default plan's
-    model settings (FHNN width 32), so the ablations share FHNN's architecture."""
+    model settings (FHNN width 32 and slow-window weights, ``slow_weight`` 1), so the ablations
+    share FHNN's architecture. On data sets with observation noise (``noisy_flow``) the plan's
+    ``noisy_model`` settings replace them (FHNN ``slow_weight`` 0; :func:`build_grid`)."""
     plan = PLANS[DEFAULT_PLAN]
     return ModelOptions.from_dict(
         {kind: MODELS[kind].config().replace(**plan.model.get(kind, {})).to_dict() for kind in MODELS}
@@ -161,7 +163,8 @@ class ReproduceConfig(Config):
             budget for all (:class:`~fhnn.training.trainer.TrainConfig`, default
             :func:`reproduction_train`; its seed is set per job).
         model: each model kind's configuration (``ModelOptions``, default
-            :func:`reproduction_models`).
+            :func:`reproduction_models`); on data sets with observation noise the default plan's
+            ``noisy_model`` settings replace the fields they name (FHNN ``slow_weight``).
         fast_compile: compile the jobs' programs for compilation speed rather than run speed
             (LLVM optimisation level 0 in the worker processes: on the 2-core CPU the quick
             reproduction takes ~23 % less wall time and an Adam step runs 1.6× slower),
@@ -284,6 +287,11 @@ class DataJob:
         return self.scenario + ("_noact" if self.settings.get("actuation") == "none" else "")
 
     @property
+    def noisy(self) -> bool:
+        """Whether the data set's observations carry noise (the scenario's ``obs_noise`` > 0)."""
+        return float(self.settings.get("obs_noise", SCENARIOS[self.scenario].defaults.obs_noise)) > 0
+
+    @property
     def spec(self) -> dict[str, Any]:
         spec = {"kind": "data", "scenario": self.scenario, "settings": self.settings}
         return {**spec, "fast_compile": True} if self.fast_compile else spec
@@ -364,6 +372,8 @@ def build_grid(config: ReproduceConfig) -> tuple[list[DataJob], list[ModelJob]]:
     def add(d: DataJob, model: str, ablation: str = "none") -> None:
         datasets.setdefault(d.id, d)
         model_config = getattr(config.model, model)
+        if d.noisy:  # the default plan's rule for noisy observations (FHNN: no slow-window weights)
+            model_config = model_config.replace(**PLANS[DEFAULT_PLAN].noisy_model.get(model, {}))
         if ablation != "none":
             model_config = model_config.replace(ablation=ablation)
         for seed in range(config.seeds):
