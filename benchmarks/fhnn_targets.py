@@ -54,7 +54,9 @@ def train(name: str, folder: Path, options: dict, plan: str | None, seed: int | 
     start = get_plan(plan).settings("fhnn", noisy=is_noisy(ds)) if plan else default_settings(ds)
     config = RunConfig().with_settings({**start, **data_settings(ds), **given})
     plan = plan or DEFAULT_PLAN
-    print(f"{name}: training plan {plan!r} {config.train.to_dict()} width {config.model.width}", flush=True)
+    print(
+        f"{name}: training plan {plan!r} {config.train.to_dict()} model {config.model.to_dict()}", flush=True
+    )
     run = Run.create(folder / f"run_{name}", ds, config, data_path=path)
     t0 = time.perf_counter()
     run.train(

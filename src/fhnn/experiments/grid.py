@@ -179,10 +179,10 @@ class ReproduceConfig(Config):
             where one program can fill the machine: on an H100, three seeds' Adam steps as one
             program had 3.78× (the default plan's step) and 2.81× (every loss term) the throughput
             of three in sequence (``docs/benchmarks/training_speed_gpu.txt``). On the 2-core CPU it
-            does not (0.74× and 0.68×; ``fhnn train --seeds 3`` end to end 0.98×,
-            ``docs/benchmarks/training_speed.txt``), while a job per seed keeps both cores busy,
-            so it is off by default. The vmapped sums change the last bits, so the setting is part
-            of every grouped job's key.
+            does not (0.74× and 0.68×, 1.15× and 0.93× in a faster hour; ``fhnn train --seeds 3``
+            end to end 0.98×, ``docs/benchmarks/training_speed.txt``), while a job per seed keeps
+            both cores busy, so it is off by default. The vmapped sums change the last bits, so the
+            setting is part of every grouped job's key.
     """
 
     config_name = "reproduce"

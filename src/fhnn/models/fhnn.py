@@ -32,9 +32,10 @@ quasi-Newton phases recomputed the weights at every iterate, their derivative le
 stalled L-BFGS; they now hold the weights of the model each phase starts from
 (:meth:`FHNN.quasi_newton_weights`): ``obstacle``'s masses then came out 1.0 / 1.1 % off, but its
 flow 1.3 % and ``wave``'s ``c_l`` 13.7 %, so it stays an option. ``slow_weight = 1`` with the
-full default plan settles the split on clean data (``steady_vortex``: ``c_l`` 0.10–0.15 % off, the
-σ bands with ≥ 20 % quadratic share within 0.9 %) but not on noisy observations (numbers in the
-same file).
+full default plan settles the split on clean data (``steady_vortex``: ``c_l`` 0.08–0.15 % off on
+three data seeds, the σ bands with ≥ 20 % quadratic share within 0.9 %) but not on noisy
+observations (numbers in the same file), so the default plan (``fhnn.training.plans``) sets it
+on data with noise-free observations only.
 
 Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
 constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
@@ -136,8 +137,9 @@ class FHNNConfig(Config):
             training window in the data loss, ``σ`` the relative speed at its start under the
             current model (in the quasi-Newton phases: under the model the phase starts from, held
             fixed), ``σ̃`` the batch's median (see :meth:`FHNN.loss_terms`); 0 (default):
-            every window alike. 2 settles the drag split on ``steady_vortex`` but not on every
-            scenario (module docstring).
+            every window alike. The default training plan sets 1 on data with noise-free
+            observations (it settles the drag split there, not on noisy observations); 2 settles
+            it on ``steady_vortex`` but not on every scenario (module docstring).
     """
 
     config_name = "fhnn"

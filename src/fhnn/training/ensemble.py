@@ -12,8 +12,8 @@ the same shapes and configuration, so the first member's compiled programs serve
 member, and each stays an ordinary run that can be resumed, inspected or evaluated on its own.
 Three members' Adam steps as one program have 3.78× the throughput of sequential ones for the
 default plan's step and 2.81× for the step with every loss term and the penalty on an H100 GPU,
-but 0.74× and 0.68× on the 2-core CPU, where Adam's chunks of steps per call already leave no
-dispatch to share and a step is arithmetic (``benchmarks/training_speed.py``;
+but 0.74× and 0.68× on the 2-core CPU (1.15× and 0.93× in a faster hour), where Adam's chunks of
+steps per call already leave no dispatch to share and a step is arithmetic (``benchmarks/training_speed.py``;
 ``docs/benchmarks/training_speed*.txt``: ``fhnn train --seeds 3`` end to end 0.98× on the CPU);
 the quasi-Newton phases, whose line searches differ from member to member, stay sequential — all
 of a default-plan run on ``solid_body_vortex`` (its warm-up is kept, Adam skipped), about three
