@@ -365,6 +365,8 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert "velocities and derivatives were estimated, not measured: training with" in said
     assert "train.w_deriv=0.0, train.w_step=0.0, train.batch_size=32, train.lr_c_l=10.0" in said
     assert re.search(r"train\.shoot_noise=\(0\.00\d+, 0\.00\d+\) \(--set wins\)", said), said
+    # its noise is estimated, never zero: the windows are not weighted by their slowness
+    assert re.search(r"observations with noise \(obs_noise 0\.00\d+\): windows not weighted", said), said
     config = Run.load(run).train_config
     assert (config.shoot, config.w_deriv, config.w_step, config.batch_size) == (8, 0.0, 0.0, 32)
     assert config.lr_c_l == ESTIMATED_VELOCITY_LR_C_L == 10.0

@@ -133,6 +133,7 @@ def test_a_new_run_without_a_plan_starts_from_the_default_plan(
     ds = read_dataset(data_file)
     assert default_settings(ds) == PLANS[DEFAULT_PLAN].settings("fhnn")
     assert ds.obs_noise == 0 and info["model_config"]["slow_weight"] == 1.0  # noise-free: weighted
+    assert "noise-free observations: each window weighted by its slowness (model.slow_weight=1)" in err
     # measured derivatives: the plan's derivative loss alone, no flow penalty
     assert info["train_config"]["w_step"] == 0.0 and info["train_config"]["lambda_flow"] == 0.0
     assert data_settings(ds) == {}

@@ -438,6 +438,9 @@ def train(
                 soft_wrap=True,
                 highlight=False,
             )
+    new_run = not (out / "run.json").exists() and not is_ensemble(out) and "model.slow_weight" not in given
+    if new_run and not quiet and kind == "fhnn" and (plan or DEFAULT_PLAN) == DEFAULT_PLAN:
+        _say_window_weights(data, dataset, config)
     if n_seeds is None and is_ensemble(out):
         n_seeds = len(read_seeds(out))
         settings.setdefault("train.seed", read_seeds(out)[0])
@@ -460,6 +463,22 @@ def train(
     _train_runs(runs, labels, dataset, quiet=quiet)
     if not quiet:
         stdout.print(f"ensemble of {n_seeds} runs (seeds {seeds[0]}–{seeds[-1]}) in {out}", soft_wrap=True)
+
+
+def _say_window_weights(data: Path, dataset: Any, config: Any) -> None:
+    """Say on stderr whether a new FHNN run's plan weighs its windows by their slowness, and
+    why (the default plan does so on noise-free observations only)."""
+    weight = float(config.model.slow_weight)
+    if weight > 0:
+        text = f"noise-free observations: each window weighted by its slowness (model.slow_weight={weight:g})"
+    elif is_noisy(dataset) and any("slow_weight" in m for m in PLANS[DEFAULT_PLAN].model.values()):
+        text = (
+            f"observations with noise (obs_noise {dataset.obs_noise:.3g}): windows not weighted by their "
+            "slowness (model.slow_weight=0; the default plan weighs them on noise-free observations only)"
+        )
+    else:
+        return
+    err.print(f"{data}: {text} (--set wins)", soft_wrap=True, highlight=False)
 
 
 def _open_run(
