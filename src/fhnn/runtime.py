@@ -32,6 +32,13 @@ from pathlib import Path
 EQX_ON_ERROR_DEFAULT = "nan"
 os.environ.setdefault("EQX_ON_ERROR", EQX_ON_ERROR_DEFAULT)
 
+#: On a GPU, JAX takes 75 % of the device's memory when a process first uses it, so a second process
+#: on the same GPU (``fhnn reproduce``'s workers, runs side by side) starts short of memory: three
+#: FHNN trainings at once on an H100 logged failed allocations and failed cuBLAS handles. fhnn's
+#: programs need a few hundred MB, so each process allocates what it uses instead. Set only where
+#: ``$XLA_PYTHON_CLIENT_PREALLOCATE`` is unset; no effect on a CPU.
+os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+
 import jax  # noqa: E402  (after the Equinox setting, which Equinox reads once, on import)
 
 jax.config.update("jax_enable_x64", True)
