@@ -12,6 +12,7 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -428,19 +429,15 @@ def train(
     config = RunConfig().with_settings({**start, **settings})
     # what the data's estimated fields call for (below any setting given) and changes
     said = {k: v for k, v in implied.items() if get_setting(before, k) != get_setting(config, k)}
+    notes = []  # said once the runs are open and their data checked: bad input stays one line
     if said:
-        if not quiet:
-            estimated = [f for f in ("velocities", "derivatives") if f not in dataset.measured]
-            with_ = ", ".join(f"{k}={v}" for k, v in said.items())
-            err.print(
-                f"{data}: {' and '.join(estimated)} were estimated, not measured: training with {with_} "
-                "(--set wins)",
-                soft_wrap=True,
-                highlight=False,
-            )
+        estimated = [f for f in ("velocities", "derivatives") if f not in dataset.measured]
+        with_ = ", ".join(f"{k}={v}" for k, v in said.items())
+        fields = " and ".join(estimated)
+        notes.append(f"{data}: {fields} were estimated, not measured: training with {with_} (--set wins)")
     new_run = not (out / "run.json").exists() and not is_ensemble(out) and "model.slow_weight" not in given
-    if new_run and not quiet and kind == "fhnn" and (plan or DEFAULT_PLAN) == DEFAULT_PLAN:
-        _say_window_weights(data, dataset, config)
+    if new_run and kind == "fhnn" and (plan or DEFAULT_PLAN) == DEFAULT_PLAN:
+        notes += _window_weights_note(data, dataset, config)
     if n_seeds is None and is_ensemble(out):
         n_seeds = len(read_seeds(out))
         settings.setdefault("train.seed", read_seeds(out)[0])
@@ -448,7 +445,7 @@ def train(
         raise ConfigError(f"{out} holds an ensemble; resume it without --seeds, or train into a new folder")
     if n_seeds is None or n_seeds == 1:
         runs = [_open_run(out, settings, config, dataset, data, extend=extend)]
-        _train_runs(runs, [""], dataset, quiet=quiet)
+        _train_runs(runs, [""], dataset, quiet=quiet, notes=notes)
         return
     if "train.bootstrap" not in given:  # an ensemble's spread should hold the sampling noise
         settings["train.bootstrap"] = True
@@ -460,14 +457,14 @@ def train(
         member_config = RunConfig().with_settings({**start, **member})
         runs.append(_open_run(folder, member, member_config, dataset, data, extend=extend))
     labels = [f"seed {s} ({k + 1}/{n_seeds}) " for k, s in enumerate(seeds)]
-    _train_runs(runs, labels, dataset, quiet=quiet)
+    _train_runs(runs, labels, dataset, quiet=quiet, notes=notes)
     if not quiet:
         stdout.print(f"ensemble of {n_seeds} runs (seeds {seeds[0]}–{seeds[-1]}) in {out}", soft_wrap=True)
 
 
-def _say_window_weights(data: Path, dataset: Any, config: Any) -> None:
-    """Say on stderr whether a new FHNN run's plan weighs its windows by their slowness, and
-    why (the default plan does so on noise-free observations only)."""
+def _window_weights_note(data: Path, dataset: Any, config: Any) -> list[str]:
+    """What to say of whether a new FHNN run's plan weighs its windows by their slowness, and
+    why (the default plan does so on noise-free observations only): a line, or none."""
     weight = float(config.model.slow_weight)
     if weight > 0:
         text = f"noise-free observations: each window weighted by its slowness (model.slow_weight={weight:g})"
@@ -477,8 +474,8 @@ def _say_window_weights(data: Path, dataset: Any, config: Any) -> None:
             "slowness (model.slow_weight=0; the default plan weighs them on noise-free observations only)"
         )
     else:
-        return
-    err.print(f"{data}: {text} (--set wins)", soft_wrap=True, highlight=False)
+        return []
+    return [f"{data}: {text} (--set wins)"]
 
 
 def _open_run(
@@ -521,10 +518,13 @@ def _open_run(
     return Run.create(out, dataset, config, data_path=data)
 
 
-def _train_runs(runs: list[Any], labels: list[str], dataset: Any, *, quiet: bool) -> None:
+def _train_runs(
+    runs: list[Any], labels: list[str], dataset: Any, *, quiet: bool, notes: Sequence[str] = ()
+) -> None:
     """Train the unfinished ``runs`` — one run, or an ensemble's members (their Adam phases as
     one program: :func:`fhnn.training.ensemble.train_members`) — with a progress bar each
-    (``labels[j]`` before its phase), then say how each ended."""
+    (``labels[j]`` before its phase), then say how each ended; ``notes`` (what the data made of
+    the settings) are said once the data are checked against the runs."""
     from fhnn.training.ensemble import train_members
 
     todo = [(run, label) for run, label in zip(runs, labels, strict=True) if not run.finished]
@@ -532,6 +532,8 @@ def _train_runs(runs: list[Any], labels: list[str], dataset: Any, *, quiet: bool
         return
     for run, _ in todo:  # before the progress bar: a data set too short for the windows is one line
         run.check_windows(dataset)
+    for note in () if quiet else notes:
+        err.print(note, soft_wrap=True, highlight=False)
     names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam"}
     columns = (
         TextColumn("{task.fields[label]}{task.fields[phase]:9s}"),
