@@ -341,8 +341,8 @@ def train(
         str | None,
         typer.Option(
             help=f"Training plan: {'|'.join(PLANS)} (its training settings and the model settings it "
-            f"was measured with; --set wins; see README) [default: {DEFAULT_PLAN}; the training defaults "
-            "on data with estimated velocities]"
+            f"was measured with, which may differ for noisy observations; --set wins; see README) "
+            f"[default: {DEFAULT_PLAN}; the training defaults on data with estimated velocities]"
         ),
     ] = None,
     steps: Annotated[
