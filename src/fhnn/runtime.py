@@ -1,5 +1,5 @@
 """Process-wide settings, in one place: the package version, float64, Equinox's runtime checks, GPU
-memory allocated as needed (:data:`XLA_PYTHON_CLIENT_PREALLOCATE` below) and the compilation cache.
+memory allocated as needed (:data:`XLA_PREALLOCATE_DEFAULT`) and the compilation cache.
 
 JAX's settings are global to a process. Importing :mod:`fhnn` (which imports this module first)
 switches JAX to float64, so every computation of the package runs in double precision, and, unless
@@ -37,8 +37,8 @@ os.environ.setdefault("EQX_ON_ERROR", EQX_ON_ERROR_DEFAULT)
 #: FHNN trainings at once on an H100 logged failed allocations and failed cuBLAS handles. fhnn's
 #: programs need a few hundred MB, so each process allocates what it uses instead. Set only where
 #: ``$XLA_PYTHON_CLIENT_PREALLOCATE`` is unset; no effect on a CPU.
-XLA_PYTHON_CLIENT_PREALLOCATE = "false"
-os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", XLA_PYTHON_CLIENT_PREALLOCATE)
+XLA_PREALLOCATE_DEFAULT = "false"
+os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", XLA_PREALLOCATE_DEFAULT)
 
 import jax  # noqa: E402  (after the Equinox setting, which Equinox reads once, on import)
 

@@ -468,7 +468,7 @@ def _window_weights_note(data: Path, dataset: Any, config: Any) -> list[str]:
     weight = float(config.model.slow_weight)
     if weight > 0:
         text = f"noise-free observations: each window weighted by its slowness (model.slow_weight={weight:g})"
-    elif is_noisy(dataset) and any("slow_weight" in m for m in PLANS[DEFAULT_PLAN].model.values()):
+    elif is_noisy(dataset) and "slow_weight" in PLANS[DEFAULT_PLAN].noisy_model.get("fhnn", {}):
         text = (
             f"observations with noise (obs_noise {dataset.obs_noise:.3g}): windows not weighted by their "
             "slowness (model.slow_weight=0; the default plan weighs them on noise-free observations only)"
