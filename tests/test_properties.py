@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from fhnn.models.fhnn import cap
@@ -138,6 +138,7 @@ def _data():
 
 
 @given(z=st.floats(-50, 50, **finite), kind=st.sampled_from(["tanh", "sigmoid"]))
+@example(z=35.328125, kind="tanh")  # XLA's tanh fell by an ulp here (cap 2), before _tanh_nonnegative
 def test_the_cap_map_is_positive_below_its_cap_and_increasing(z: float, kind: str) -> None:
     caps = jnp.asarray([60.0, 60.0, 2.0, 10.0])
     lo, hi = (np.asarray(cap(jnp.full(4, v), caps, kind)) for v in (z, z + 0.5))

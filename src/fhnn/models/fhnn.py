@@ -293,7 +293,19 @@ def _const(value: Array) -> Array:
 def cap(z: Array, caps: Array, kind: str) -> Array:
     """``C·tanh(softplus(z)/C)`` (kind "tanh") or the paper's ``C·sigmoid(softplus(z)/C)``."""
     sp = jax.nn.softplus(z) / caps
-    return caps * (jnp.tanh(sp) if kind == "tanh" else jax.nn.sigmoid(sp))
+    return caps * (_tanh_nonnegative(sp) if kind == "tanh" else jax.nn.sigmoid(sp))
+
+
+def _tanh_nonnegative(x: Array) -> Array:
+    """``tanh(x)`` for ``x ≥ 0`` as ``−expm1(−2x) / (1 + exp(−2x))``, increasing in floating point.
+
+    XLA's float64 ``tanh`` on the CPU is not monotone near saturation: on a grid of step 1e-5 it
+    decreases at 158,337 of 4 million points of [0, 40], from x ≈ 12.4 on, by an ulp or two, and
+    so the cap map did too (a coefficient could fall as its raw output rose). This form has no
+    decrease on that grid, within 6e-16 of ``numpy.tanh``; it reaches 1 exactly from x ≈ 19.
+    """
+    e = jnp.exp(-2.0 * x)
+    return -jnp.expm1(-2.0 * x) / (1.0 + e)
 
 
 def uncap(value: np.ndarray, caps: np.ndarray, kind: str) -> np.ndarray:
