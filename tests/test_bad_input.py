@@ -266,6 +266,15 @@ CASES = [
         ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--smoother", "x"],
         "--smoother must be one of auto, spline, kalman",
     ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--max-gap", "0"],
+        "--max-gap must be auto or a number of seconds > 0, got '0'",
+    ),
+    (["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--max-gap", "soon"], "--max-gap must be auto or"),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--max-gap", "0.05"],
+        "0 of the table's 3 trajectories keep a piece of at least 3 samples between gaps longer than --max-gap",
+    ),
     (["predict", "{ws}/run", "--duration", "1"], "give --initial x,y,vx,vy or --history TABLE"),
     ([*P, "--history", "{ws}/good.csv"], "give --initial x,y,vx,vy or --history TABLE"),
     (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,3"], "--initial expects x,y,vx,vy"),

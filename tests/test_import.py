@@ -30,10 +30,14 @@ from fhnn.data.derivatives import (
     smooth_derivatives,
 )
 from fhnn.data.table import (
+    GAP_STEPS,
     PAD_STEP,
+    Trajectory,
     observe,
+    parse_max_gap,
     read_table,
     seconds_to_date_times,
+    split_at_gaps,
     split_counts,
     start_errors,
     write_table,
@@ -119,6 +123,72 @@ def test_import_keeps_every_sample_and_counts_the_gaps(imported) -> None:
     assert sorted(functools.reduce(operator.iadd, record["traj_ids"].values(), [])) == sorted(
         str(i) for i in range(12)
     )
+
+
+def test_tracks_are_split_at_gaps_longer_than_their_median_steps() -> None:
+    """``--max-gap auto`` cuts a track where an interval exceeds GAP_STEPS times its own median
+    step (a track sampled ten times more coarsely is not cut at its ordinary steps); an explicit
+    gap is in seconds; a piece under MIN_SAMPLES samples is dropped and counted."""
+
+    def track(name: str, t: np.ndarray) -> Trajectory:
+        pos = np.stack([t, -t], axis=1)
+        return Trajectory(name, t, pos, None, 2 * pos)
+
+    fine = np.r_[np.arange(10) * 0.1, 5.0 + np.arange(6) * 0.1, 20.0, 20.1]  # gaps 4.1 s and 14.5 s
+    coarse = np.arange(12) * 1.0  # ordinary steps of 1 s: ten times the fine track's
+    cut = split_at_gaps([track("a", fine), track("b", coarse)], None)
+    assert [p.traj_id for p in cut.pieces] == ["a#1", "a#2", "b"]
+    assert (cut.gaps, cut.split_tracks, cut.short_pieces, cut.short_rows) == (2, 1, 1, 2)
+    np.testing.assert_array_equal(cut.track, [0, 0, 1])
+    np.testing.assert_array_equal(cut.pieces[1].t, fine[10:16])
+    np.testing.assert_array_equal(cut.pieces[1].force, 2 * cut.pieces[1].pos)
+    assert GAP_STEPS * 0.1 < 4.1 and GAP_STEPS * 1.0 > 1.0
+    # in seconds: 0.5 s cuts the coarse track at every step (every piece dropped), inf never cuts
+    by_seconds = split_at_gaps([track("a", fine), track("b", coarse)], 0.5)
+    assert [p.traj_id for p in by_seconds.pieces] == ["a#1", "a#2"] and by_seconds.short_rows == 2 + 12
+    assert [p.traj_id for p in split_at_gaps([track("a", fine)], np.inf).pieces] == ["a"]
+    assert parse_max_gap("auto") is None and parse_max_gap("inf") == np.inf and parse_max_gap("2.5") == 2.5
+    for bad in ("0", "-1", "nan", "soon"):
+        with pytest.raises(ConfigError, match="--max-gap must be auto or a number of seconds > 0"):
+            parse_max_gap(bad)
+
+
+def test_an_outage_splits_a_track_into_pieces_that_stay_in_one_split(imported, capsys) -> None:
+    """A tracking outage (2 s without rows, 40 median steps) in two tracks: they are imported as
+    pieces ``ID#1``, ``ID#2``, each piece's samples as in the table, a track's pieces in one split,
+    and ``import`` says so; ``--max-gap inf`` imports the table as one trajectory per track."""
+    folder, table = imported
+    keep = ~((np.isin(table["traj_id"], (2, 5))) & (table["t"] > 2.0) & (table["t"] < 4.0))
+    write_table({c: v[keep] for c, v in table.items()}, folder / "outage.csv")
+    args = ["import", str(folder / "outage.csv"), "--mass", "10", "--area", "0.1"]
+    capsys.readouterr()
+    for out, extra in (("outage.h5", []), ("outage_inf.h5", ["--max-gap", "inf", "-q"])):
+        with pytest.raises(SystemExit) as info:
+            main([*args, "-o", str(folder / out), *extra])
+        assert info.value.code == 0
+    said = " ".join(capsys.readouterr().out.split())
+    assert (
+        "gaps: 2 gap(s) longer than 10x the trajectory's median step split 2 of the table's 12 trajectories "
+        "into pieces named ID#1, ID#2, ...; 0 piece(s) under 3 samples dropped (0 rows)"
+    ) in said, said
+    data, whole = read_dataset(folder / "outage.h5"), read_dataset(folder / "outage_inf.h5")
+    record = data.extra["import"]
+    assert (record["trajectories"], record["tracks"], record["gaps_split"]) == (14, 12, 2)
+    assert whole.extra["import"]["gaps_split"] == 0 and whole.extra["import"]["trajectories"] == 12
+    rows = keep & ~np.isnan(table["x"])
+    for traj in (2, 5):
+        homes = [name for name, ids in record["traj_ids"].items() if {f"{traj}#1", f"{traj}#2"} & set(ids)]
+        assert len(homes) == 1 and {f"{traj}#1", f"{traj}#2"} <= set(record["traj_ids"][homes[0]])
+        split, ids = data[homes[0]], record["traj_ids"][homes[0]]
+        t = np.sort(table["t"][rows & (table["traj_id"] == traj)])
+        for piece, part in ((f"{traj}#1", t[t < 3.0]), (f"{traj}#2", t[t > 3.0])):
+            i = ids.index(piece)
+            np.testing.assert_array_equal(split.times[i, : split.sample_counts[i]], part)
+    # the other tracks are imported as without the outage's rows
+    for name in ("train", "val", "test"):
+        assert [i for i in record["traj_ids"][name] if "#" not in i] == [
+            i for i in whole.extra["import"]["traj_ids"][name] if i not in ("2", "5")
+        ]
 
 
 def test_csv_and_parquet_give_the_same_data_set(imported) -> None:
@@ -522,6 +592,54 @@ def test_iso_times_read_as_seconds_after_the_earliest(imported, tmp_path, capsys
         main(["info", str(tmp_path / "s.h5")])
     assert info.value.code == 0
     assert "times read as seconds after 2026-03-01T10:00:00Z" in capsys.readouterr().out
+
+
+def test_trajectories_too_short_for_a_window_give_none_and_are_counted(fine, rng) -> None:
+    """A user's tracks come in any length: a window longer than some trajectories takes its
+    windows from the others, and only a window longer than every trajectory is refused."""
+    split = _ragged(fine.train, rng)
+    counts = split.sample_counts
+    window = int(np.sort(counts)[counts.size // 2])  # about half the trajectories are shorter
+    windows = Windows.of(split, window)
+    short = counts < window
+    assert 0 < Windows.without_window(split, window) == int(short.sum()) < split.n_traj
+    assert not np.isin(np.flatnonzero(short), windows.traj).any()
+    assert len(windows) == int(np.sum(np.maximum(counts - window + 1, 0)))
+    assert Windows.without_window(split, window, skip=2) == int(np.sum(counts < window + 2))
+    assert Windows.without_window(split, 2) == 0
+    with pytest.raises(ConfigError, match=f"no trajectory has a window of {counts.max() + 1} samples"):
+        Windows.of(split, int(counts.max()) + 1)
+
+
+def test_training_leaves_out_and_names_tracks_shorter_than_its_windows(imported, capsys) -> None:
+    """Imported data train with windows of 40 samples (the multi-step loss): a table with some
+    shorter tracks trains on the others and says how many of each split were left out."""
+    folder, table = imported
+    keep = np.ones(table["t"].size, dtype=bool)
+    for traj in (1, 4, 7, 10):  # these tracks keep their first 25 rows in time
+        rows = np.flatnonzero(table["traj_id"] == traj)
+        keep[rows[np.argsort(table["t"][rows])[25:]]] = False
+    write_table({c: v[keep] for c, v in table.items()}, folder / "short.csv")
+    data, run = folder / "short.h5", folder / "short_run"
+    with pytest.raises(SystemExit) as info:
+        main(["import", str(folder / "short.csv"), "-o", str(data), "--mass", "10", "--area", "0.1", "-q"])
+    assert info.value.code == 0
+    dataset = read_dataset(data)
+    short = {name: int(np.sum(dataset[name].sample_counts < 40)) for name in ("train", "val")}
+    assert short["train"] > 0, short  # the split's seed puts some of the four into training
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as info:
+        main(["train", str(data), "-o", str(run), "--steps", "2", "--set", "model.width=8"])
+    assert info.value.code == 0
+    said = " ".join(capsys.readouterr().err.split())
+    parts = [f"{short['train']} of {dataset.train.n_traj} training"]
+    if short["val"]:
+        parts.append(f"{short['val']} of {dataset.val.n_traj} validation")
+    assert (
+        f"{' and '.join(parts)} trajectories are shorter than the training windows (40 samples) and are "
+        "left out of the loss (--set train.shoot=N for shorter windows)"
+    ) in said, said
+    assert Run.load(run).state.step == 2
 
 
 def test_windows_can_skip_each_trajectorys_first_samples_and_tile_it(fine, rng) -> None:

@@ -28,6 +28,7 @@ from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.derivatives import AUTO_SPLINE_ROWS
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
+from fhnn.data.table import GAP_STEPS
 from fhnn.errors import ConfigError, FhnnError
 from fhnn.evaluation.predict import SAMPLES
 from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_LBFGS_PAIRS, JOB_SECONDS
@@ -248,13 +249,24 @@ def import_table(
             f"{AUTO_SPLINE_ROWS:,} rows, kalman above.",
         ),
     ] = "auto",
+    max_gap: Annotated[
+        str,
+        typer.Option(
+            "--max-gap",
+            help="Split a trajectory into pieces where two samples are more than this many seconds "
+            f"apart (inf: never); auto: more than {GAP_STEPS:g}x its median step. Pieces keep the "
+            "trajectory's split and are named ID#1, ID#2, ...; pieces under 3 samples are dropped "
+            "and counted.",
+        ),
+    ] = "auto",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
     """Import measured trajectories from a table into a data set: rows in any order, irregular
-    times, unequal lengths; rows with missing values are dropped and counted; velocities the table
-    lacks are estimated from the positions (a smoother held to the noise level they show).
-    Trajectories are split into train/val/test by a seeded permutation."""
-    from fhnn.data.table import ImportSettings, parse_split, read_table, table_to_dataset
+    times, unequal lengths; rows with missing values are dropped and counted; a trajectory with a
+    long gap (--max-gap) becomes pieces; velocities the table lacks are estimated from the
+    positions (a smoother held to the noise level they show). Trajectories are split into
+    train/val/test by a seeded permutation."""
+    from fhnn.data.table import ImportSettings, parse_max_gap, parse_split, read_table, table_to_dataset
 
     settings = ImportSettings(
         mass=mass,
@@ -265,6 +277,7 @@ def import_table(
         seed=seed,
         time_dependent=time_dependent,
         smoother=smoother,
+        max_gap=parse_max_gap(max_gap),
     )
     check_output_path(output)
     dataset = table_to_dataset(read_table(table), settings, source=table.name)
@@ -462,6 +475,25 @@ def train(
         stdout.print(f"ensemble of {n_seeds} runs (seeds {seeds[0]}–{seeds[-1]}) in {out}", soft_wrap=True)
 
 
+def _windowless_note(run: Any, dataset: Any) -> list[str]:
+    """A note where trajectories of the train or val split are too short for ``run``'s training
+    windows (a user's tracks come in any length): they are left out of the loss; none otherwise."""
+    counts = run.windowless(dataset)
+    if not any(short for short, _ in counts.values()):
+        return []
+    names = {"train": "training", "val": "validation"}
+    parts = " and ".join(
+        f"{short} of {total} {names[name]}" for name, (short, total) in counts.items() if short
+    )
+    window, skip = run.check_windows(dataset), run.train_config.first_start
+    after = f" from sample {skip} on" if skip else ""
+    hint = " (--set train.shoot=N for shorter windows)" if window == run.train_config.shoot else ""
+    return [
+        f"{parts} trajectories are shorter than the training windows ({window} samples{after}) "
+        f"and are left out of the loss{hint}"
+    ]
+
+
 def _window_weights_note(data: Path, dataset: Any, config: Any) -> list[str]:
     """What to say of whether a new FHNN run's plan weighs its windows by their slowness, and
     why (the default plan does so on noise-free observations only): a line, or none."""
@@ -532,6 +564,7 @@ def _train_runs(
         return
     for run, _ in todo:  # before the progress bar: a data set too short for the windows is one line
         run.check_windows(dataset)
+    notes = [*notes, *_windowless_note(todo[0][0], dataset)]
     for note in () if quiet else notes:
         err.print(note, soft_wrap=True, highlight=False)
     names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam"}
@@ -1320,6 +1353,20 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
             soft_wrap=True,
             highlight=False,
         )
+        if record.get("gaps_split"):
+            limit = (
+                f"{_fmt(record['gap_steps'])}x the trajectory's median step"
+                if record["max_gap"] is None
+                else f"{_fmt(record['max_gap'])} s"
+            )
+            stdout.print(
+                f"gaps: {record['gaps_split']} gap(s) longer than {limit} split {record['tracks_split']} of "
+                f"the table's {record['tracks']} trajectories into pieces named ID#1, ID#2, ...; "
+                f"{record['short_pieces_dropped']} piece(s) under 3 samples dropped "
+                f"({record['short_piece_rows']} rows)",
+                soft_wrap=True,
+                highlight=False,
+            )
         vel_noise, vel_error = record["velocity_noise"], record.get("velocity_error")
         stdout.print(
             f"measured: {', '.join(summary['measured'])}; "

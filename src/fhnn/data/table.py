@@ -35,6 +35,7 @@ test by a seeded permutation.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import os
 from pathlib import Path
 from typing import Any
@@ -54,6 +55,12 @@ COLUMNS = (*REQUIRED, *(c for pair in OPTIONAL_PAIRS for c in pair))
 MIN_SAMPLES = 3
 #: Padding after a shorter trajectory's last sample: times go on in steps of this [s].
 PAD_STEP = 1e-6
+#: ``--max-gap auto``: a track is split where an interval is longer than this many times its
+#: median step. Training rolls RK4 one step per interval; on issue 14's tracks (``steady_vortex``
+#: observed every 0.05 s) one step's position error is at most 8.0e-6 m over 10 steps' time
+#: (0.5 s), 2.2e-4 m over 20 and 5.7e-3 m over 40, against 1 mm of noise
+#: (``benchmarks/gap_steps.py``, ``docs/benchmarks/gap_steps.txt``).
+GAP_STEPS = 10.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -409,6 +416,9 @@ class ImportSettings:
         smoother: the velocity estimator: a key of :data:`~fhnn.data.derivatives.SMOOTHERS`, or
             ``"auto"`` (the spline up to :data:`~fhnn.data.derivatives.AUTO_SPLINE_ROWS` rows,
             the Kalman smoother above; :func:`~fhnn.data.derivatives.choose_smoother`).
+        max_gap: a track is split into pieces where two samples are more than this many seconds
+            apart (``inf``: never); ``None``: where they are more than :data:`GAP_STEPS` times
+            the track's median step apart (:func:`split_at_gaps`).
     """
 
     mass: float
@@ -419,9 +429,12 @@ class ImportSettings:
     seed: int = 0
     time_dependent: bool = False
     smoother: str = AUTO
+    max_gap: float | None = None
 
     def __post_init__(self) -> None:
         choose_smoother(self.smoother, 0)  # an unknown name is refused here
+        if self.max_gap is not None and not (self.max_gap > 0):
+            raise ConfigError(f"--max-gap must be a number of seconds > 0 (or auto), got {self.max_gap!r}")
         for name in ("mass", "area", "rho"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -455,6 +468,73 @@ def parse_split(text: str) -> tuple[float, float, float]:
     if len(values) != 3 or any(not (v >= 0) for v in values) or not np.isclose(sum(values), 100):
         raise ConfigError(f"--split must be three percentages summing to 100, like 70/20/10; got {text!r}")
     return (values[0] / 100, values[1] / 100, values[2] / 100)
+
+
+def parse_max_gap(text: str) -> float | None:
+    """``"auto"`` → ``None``; otherwise a number of seconds > 0 (``inf``: never split)."""
+    if text.strip().lower() == "auto":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:
+        raise ConfigError(f"--max-gap must be auto or a number of seconds > 0, got {text!r}")
+    return value
+
+
+@dataclasses.dataclass(frozen=True)
+class GapSplit:
+    """A table's tracks after :func:`split_at_gaps`: the ``pieces``, the index of the track each
+    came from (``track`` ``(P,)``), how many gaps were cut in how many tracks, and how many pieces
+    (and rows) were dropped for having fewer than :data:`MIN_SAMPLES` samples."""
+
+    pieces: list[Trajectory]
+    track: np.ndarray
+    gaps: int
+    split_tracks: int
+    short_pieces: int
+    short_rows: int
+
+
+def split_at_gaps(trajectories: list[Trajectory], max_gap: float | None) -> GapSplit:
+    """Split each track where two consecutive samples are more than ``max_gap`` seconds apart
+    (``None``: more than :data:`GAP_STEPS` times the track's median step). Training integrates one
+    RK4 step per interval, and a smoother's velocity across a long gap is a guess: a track with a
+    tracking outage becomes pieces, each a trajectory of its own. A split track's pieces are named
+    ``ID#1``, ``ID#2``, … in time order; a piece with fewer than :data:`MIN_SAMPLES` samples is
+    dropped (and counted)."""
+    pieces: list[Trajectory] = []
+    track: list[int] = []
+    gaps = split_tracks = short_pieces = short_rows = 0
+    for k, tr in enumerate(trajectories):
+        steps = np.diff(tr.t)
+        limit = GAP_STEPS * float(np.median(steps)) if max_gap is None else max_gap
+        cuts = np.flatnonzero(steps > limit) + 1
+        if cuts.size == 0:
+            pieces.append(tr)
+            track.append(k)
+            continue
+        gaps += int(cuts.size)
+        split_tracks += 1
+        bounds = np.r_[0, cuts, tr.t.size]
+        for j, (a, b) in enumerate(itertools.pairwise(bounds)):
+            if b - a < MIN_SAMPLES:
+                short_pieces += 1
+                short_rows += int(b - a)
+                continue
+            part = slice(a, b)
+            pieces.append(
+                Trajectory(
+                    f"{tr.traj_id}#{j + 1}",
+                    tr.t[part],
+                    tr.pos[part],
+                    None if tr.vel is None else tr.vel[part],
+                    None if tr.force is None else tr.force[part],
+                )
+            )
+            track.append(k)
+    return GapSplit(pieces, np.asarray(track, dtype=np.int64), gaps, split_tracks, short_pieces, short_rows)
 
 
 def split_counts(n: int, fractions: tuple[float, float, float]) -> tuple[int, int, int]:
@@ -510,7 +590,15 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     in the ``import`` record); ``states_clean`` holds the observed states (the truth is unknown),
     ``derivs`` the estimated ``(vx, vy, ax, ay)``.
     """
-    trajs = table.trajectories
+    cut = split_at_gaps(table.trajectories, settings.max_gap)
+    trajs = cut.pieces
+    kept = int(np.unique(cut.track).size)
+    if kept < 3:
+        split_counts(len(table.trajectories), settings.split)  # too few tracks in the table: refused there
+        raise DataFormatError(
+            f"{kept} of the table's {len(table.trajectories)} trajectories keep a piece of at least "
+            f"{MIN_SAMPLES} samples between gaps longer than --max-gap; train, val and test need at least 3"
+        )
     has_vel = trajs[0].vel is not None
     has_force = trajs[0].force is not None
     t0 = min(float(tr.t[0]) for tr in trajs)
@@ -550,10 +638,15 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         raise DataFormatError(
             f"velocity estimates are not finite for trajectory {bad[0]!r} ({len(bad)} in all)"
         )
-    counts = split_counts(len(items), settings.split)
-    perm = np.random.default_rng(settings.seed).permutation(len(items))
+    # the split permutes the table's tracks: the pieces of a track split at gaps stay together
+    tracks = np.unique(cut.track)
+    counts = split_counts(tracks.size, settings.split)
+    perm = tracks[np.random.default_rng(settings.seed).permutation(tracks.size)]
     bounds = np.cumsum((0, *counts))
-    members = {name: np.sort(perm[bounds[k] : bounds[k + 1]]) for k, name in enumerate(SPLITS)}
+    members = {
+        name: np.flatnonzero(np.isin(cut.track, perm[bounds[k] : bounds[k + 1]]))
+        for k, name in enumerate(SPLITS)
+    }
     splits = {name: _split_of([items[i] for i in members[name]]) for name in SPLITS}
     steps = np.concatenate([np.diff(tr.t) for tr in trajs])
     measured = ["positions", *(["velocities"] if has_vel else []), *(["forces"] if has_force else [])]
@@ -564,6 +657,13 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         "rows": table.rows,
         "dropped_rows": table.dropped,
         "trajectories": len(trajs),
+        "tracks": len(table.trajectories),
+        "max_gap": settings.max_gap,
+        "gap_steps": GAP_STEPS if settings.max_gap is None else None,
+        "gaps_split": cut.gaps,
+        "tracks_split": cut.split_tracks,
+        "short_pieces_dropped": cut.short_pieces,
+        "short_piece_rows": cut.short_rows,
         "time_offset": t0,
         "time_origin": table.time_origin,
         "position_noise": pos_noise,

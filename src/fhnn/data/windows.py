@@ -46,19 +46,23 @@ class Windows:
 
     @staticmethod
     def check(split: Split, window: int = 2, *, skip: int = 0) -> None:
-        """Raise :class:`~fhnn.errors.ConfigError` unless every trajectory of ``split`` holds a
-        window of ``window`` samples and one of them starts at sample ``skip`` or later (what
-        :meth:`of` needs; cheap: no window is cut)."""
+        """Raise :class:`~fhnn.errors.ConfigError` unless some trajectory of ``split`` holds a
+        window of ``window`` samples starting at sample ``skip`` or later (what :meth:`of` needs;
+        cheap: no window is cut). Shorter trajectories are allowed — a user's tracks come in any
+        length — and give no window (:meth:`without_window` counts them)."""
         counts = split.sample_counts
-        if counts.min() < window:
-            raise ConfigError(
-                f"trajectories of {counts.min()} samples are shorter than the model's window {window}"
-            )
         if counts.max() < skip + window:
             raise ConfigError(
                 f"no trajectory has a window of {window} samples starting at sample {skip} or later "
                 f"(the longest has {counts.max()} samples)"
             )
+
+    @staticmethod
+    def without_window(split: Split, window: int = 2, *, skip: int = 0) -> int:
+        """How many trajectories of ``split`` hold no window of ``window`` samples starting at
+        sample ``skip`` or later (fewer than ``skip + window`` samples): a loss on windows leaves
+        them out."""
+        return int(np.sum(split.sample_counts < skip + window))
 
     @classmethod
     def of(cls, split: Split, window: int = 2, *, skip: int = 0) -> Windows:
