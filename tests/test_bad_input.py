@@ -275,12 +275,17 @@ CASES = [
         ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--max-gap", "0.05"],
         "0 of the table's 3 trajectories keep a piece of at least 3 samples between gaps longer than --max-gap",
     ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--outliers", "none"],
+        "--outliers must be off or a number of noise levels > 0, got 'none'",
+    ),
     (["predict", "{ws}/run", "--duration", "1"], "give --initial x,y,vx,vy or --history TABLE"),
     ([*P, "--history", "{ws}/good.csv"], "give --initial x,y,vx,vy or --history TABLE"),
     (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,3"], "--initial expects x,y,vx,vy"),
     (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,a,b"], "--initial expects x,y,vx,vy"),
     (["predict", "{ws}/run", "--duration", "0", "--initial", "0,1,0,0"], "--duration must be > 0 s"),
     ([*P, "--dt", "-1"], "--dt must be > 0 s"),
+    ([*P, "--outliers", "-3"], "--outliers must be off or a number of noise levels > 0, got '-3'"),
     ([*P, "--dt", "1e-7"], "is 1e+07 output samples per track; at most 1,000,000"),
     ([*P, "--fit-window", "0"], "--fit-window must be > 0 s"),
     (

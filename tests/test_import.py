@@ -31,10 +31,13 @@ from fhnn.data.derivatives import (
 )
 from fhnn.data.table import (
     GAP_STEPS,
+    OUTLIER_SIGMAS,
     PAD_STEP,
     Trajectory,
+    drop_outliers,
     observe,
     parse_max_gap,
+    parse_outliers,
     read_table,
     seconds_to_date_times,
     split_at_gaps,
@@ -189,6 +192,62 @@ def test_an_outage_splits_a_track_into_pieces_that_stay_in_one_split(imported, c
         assert [i for i in record["traj_ids"][name] if "#" not in i] == [
             i for i in whole.extra["import"]["traj_ids"][name] if i not in ("2", "5")
         ]
+
+
+def test_a_trackers_glitches_are_dropped_and_nothing_else(rng) -> None:
+    """``drop_outliers``: positions far (> 8 noise levels) from the cubic through their neighbours
+    go — an isolated glitch, two adjacent ones (over two passes), one in y only, one at a track's
+    second sample (seen only in its neighbours' residuals) — and no other sample, even among
+    100,000 of pure noise."""
+    t = np.cumsum(0.05 * rng.uniform(0.7, 1.3, 400))
+    pos = np.stack([np.sin(t), np.cos(0.7 * t)], axis=1) + 1e-3 * rng.normal(size=(400, 2))
+    bad = pos.copy()
+    glitches = {1: (0.5, 0.5), 57: (0.05, 0.0), 200: (0.0, -0.3), 201: (0.02, 0.02), 300: (0.0, 0.02)}
+    for i, offset in glitches.items():
+        bad[i] += offset
+    track = Trajectory("a", t, bad, None, np.zeros_like(bad))
+    (kept,), dropped, touched = drop_outliers([track], 1e-3, OUTLIER_SIGMAS)
+    assert (dropped, touched) == (len(glitches), 1)
+    np.testing.assert_array_equal(kept.t, np.delete(t, list(glitches)))
+    np.testing.assert_array_equal(kept.pos, np.delete(bad, list(glitches), axis=0))
+    assert kept.vel is None and kept.force.shape == kept.pos.shape
+    clean = Trajectory("b", np.arange(100_000) * 0.05, 1e-3 * rng.normal(size=(100_000, 2)), None, None)
+    assert drop_outliers([clean], 1e-3, OUTLIER_SIGMAS)[1:] == (0, 0)
+    assert drop_outliers([track], 0.0, OUTLIER_SIGMAS) == ([track], 0, 0)  # no noise level: no judgement
+    assert parse_outliers("off") is None and parse_outliers("6") == 6.0
+    for text in ("0", "-2", "nan", "many"):
+        with pytest.raises(ConfigError, match="--outliers must be off or a number of noise levels > 0"):
+            parse_outliers(text)
+
+
+def test_import_drops_glitches_says_so_and_keeps_them_when_told(imported, capsys) -> None:
+    """Glitches of 2-30 cm in 0.3 % of a table's rows: ``fhnn import`` drops them (no other row)
+    and says how many, and sees the tracker's noise level; ``--outliers off`` keeps every row."""
+    folder, table = imported
+    table = {c: v.copy() for c, v in table.items()}
+    inner = []  # not among a track's first or last two samples, where small glitches hide
+    for traj in np.unique(table["traj_id"]):
+        rows = np.flatnonzero((table["traj_id"] == traj) & ~np.isnan(table["x"]))
+        inner.append(rows[np.argsort(table["t"][rows])][2:-2])
+    inner = np.concatenate(inner)
+    rows = np.flatnonzero(~np.isnan(table["x"]))
+    pick = np.random.default_rng(3).choice(inner, int(0.003 * rows.size), replace=False)
+    table["x"][pick] += np.random.default_rng(4).uniform(0.02, 0.3, pick.size)
+    write_table(table, folder / "glitches.csv")
+    args = ["import", str(folder / "glitches.csv"), "--mass", "10", "--area", "0.1"]
+    capsys.readouterr()
+    for out, extra in (("glitches.h5", []), ("glitches_kept.h5", ["--outliers", "off", "-q"])):
+        with pytest.raises(SystemExit) as info:
+            main([*args, "-o", str(folder / out), *extra])
+        assert info.value.code == 0
+    said = " ".join(capsys.readouterr().out.split())
+    data, kept = read_dataset(folder / "glitches.h5"), read_dataset(folder / "glitches_kept.h5")
+    record, clean = data.extra["import"], read_dataset(folder / "track.csv.h5")
+    assert record["outliers_dropped"] == pick.size and kept.extra["import"]["outliers_dropped"] == 0
+    assert f"outliers: {pick.size} position(s) in {record['outlier_trajectories']} trajectories lay" in said
+    assert data.obs_noise == pytest.approx(clean.obs_noise, rel=0.02)
+    n = lambda d: sum(int(d[name].sample_counts.sum()) for name in ("train", "val", "test"))  # noqa: E731
+    assert n(kept) == n(clean) == n(data) + pick.size
 
 
 def test_csv_and_parquet_give_the_same_data_set(imported) -> None:
@@ -1037,6 +1096,34 @@ def test_predict_keeps_the_clock_of_the_imported_table(tmp_path, capsys, monkeyp
     np.testing.assert_allclose([tr.t[-1] for tr in seen["history"].trajectories], 2.0, atol=1e-9)
     numeric = rows
     assert [float(r[1]) for r in rows[:3]] == pytest.approx([1002.0, 1002.5, 1003.0], abs=1e-9)
+    # a glitch (20 cm) in the history's last second is left out of the fit, and predict says so
+    glitchy = {c: v.copy() for c, v in history.items()}
+    glitchy["x"][np.flatnonzero((glitchy["traj_id"] == 2) & np.isclose(glitchy["t"], 1001.5))] += 0.2
+    write_table(glitchy, tmp_path / "glitchy.csv")
+    for extra, said in (
+        ([], "note: 1 position(s) of the history lay more than 8 noise levels"),
+        (["--outliers", "off"], None),
+    ):
+        capsys.readouterr()
+        with pytest.raises(SystemExit) as info:
+            main(
+                [
+                    "predict",
+                    str(run),
+                    "--duration",
+                    "1",
+                    "--samples",
+                    "0",
+                    "--history",
+                    str(tmp_path / "glitchy.csv"),
+                    *extra,
+                ]
+            )
+        assert info.value.code == 0
+        err = " ".join(capsys.readouterr().err.split())
+        counts = [tr.t.size for tr in seen["history"].trajectories]
+        assert counts == ([21, 21, 20, 21] if said else [21] * 4), counts
+        assert (said in err) if said else ("history lay" not in err), err
     # a run whose table gave date-times (first sample 1000 s after its earliest date-time)
     iso_run = tmp_path / "iso_run"
     shutil.copytree(run, iso_run)

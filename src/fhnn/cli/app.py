@@ -28,7 +28,7 @@ from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.derivatives import AUTO_SPLINE_ROWS
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
-from fhnn.data.table import GAP_STEPS
+from fhnn.data.table import GAP_STEPS, OUTLIER_SIGMAS
 from fhnn.errors import ConfigError, FhnnError
 from fhnn.evaluation.predict import SAMPLES
 from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_LBFGS_PAIRS, JOB_SECONDS
@@ -259,14 +259,30 @@ def import_table(
             "and counted.",
         ),
     ] = "auto",
+    outliers: Annotated[
+        str,
+        typer.Option(
+            "--outliers",
+            help="Drop a position more than this many noise levels from the cubic through its two "
+            "neighbours either side (a tracker's glitch; each track's first and last two samples are "
+            "not judged), counted in the summary; off: keep every sample.",
+        ),
+    ] = f"{OUTLIER_SIGMAS:g}",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
-    """Import measured trajectories from a table into a data set: rows in any order, irregular
-    times, unequal lengths; rows with missing values are dropped and counted; a trajectory with a
-    long gap (--max-gap) becomes pieces; velocities the table lacks are estimated from the
-    positions (a smoother held to the noise level they show). Trajectories are split into
-    train/val/test by a seeded permutation."""
-    from fhnn.data.table import ImportSettings, parse_max_gap, parse_split, read_table, table_to_dataset
+    """Import measured trajectories from a table into a data set: rows in any order, irregular times,
+    unequal lengths; rows with missing values are dropped and counted; a trajectory with a long gap
+    (--max-gap) becomes pieces; glitches (--outliers) are dropped and counted; velocities the table
+    lacks are estimated from the positions (a smoother held to the noise level they show).
+    Trajectories are split into train/val/test by a seeded permutation."""
+    from fhnn.data.table import (
+        ImportSettings,
+        parse_max_gap,
+        parse_outliers,
+        parse_split,
+        read_table,
+        table_to_dataset,
+    )
 
     settings = ImportSettings(
         mass=mass,
@@ -278,6 +294,7 @@ def import_table(
         time_dependent=time_dependent,
         smoother=smoother,
         max_gap=parse_max_gap(max_gap),
+        outlier_sigmas=parse_outliers(outliers),
     )
     check_output_path(output)
     dataset = table_to_dataset(read_table(table), settings, source=table.name)
@@ -835,6 +852,14 @@ def predict(
             "(with --history; 0: none).",
         ),
     ] = SAMPLES,
+    outliers: Annotated[
+        str,
+        typer.Option(
+            "--outliers",
+            help="Drop a --history position more than this many noise levels (as the history shows "
+            "them) from the cubic through its neighbours before fitting, as fhnn import does; off: keep all.",
+        ),
+    ] = f"{OUTLIER_SIGMAS:g}",
     output: Annotated[
         Path | None,
         typer.Option(
@@ -854,6 +879,8 @@ def predict(
     from fhnn.data.table import (
         SECONDS_ONLY,
         check_table_name,
+        drop_table_outliers,
+        parse_outliers,
         read_forcing,
         read_table,
         seconds_to_date_times,
@@ -875,6 +902,7 @@ def predict(
             raise ConfigError(f"--initial expects x,y,vx,vy as four numbers, got {initial!r}") from None
         if len(state) != 4:
             raise ConfigError(f"--initial expects x,y,vx,vy as four numbers, got {initial!r}")
+    sigmas = parse_outliers(outliers)
     if output is not None:
         check_output_path(output)
         check_table_name(output)
@@ -899,6 +927,9 @@ def predict(
         )
     read_origin = SECONDS_ONLY if origin is None else origin
     tracks = read_table(history, read_origin) if history is not None else None
+    glitches = 0
+    if tracks is not None:
+        tracks, glitches = drop_table_outliers(tracks, sigmas)
     forces = read_forcing(forcing, read_origin) if forcing is not None else None
     dates = tracks is not None and tracks.time_origin is not None
     if offset:
@@ -930,6 +961,12 @@ def predict(
     result = Forecast.of_ensemble(forecasts, INTERVAL) if banded else forecasts[0]
     if forces is None:
         err.print("note: no --forcing: the forecast assumes no external force", highlight=False)
+    if glitches:
+        err.print(
+            f"note: {glitches} position(s) of the history lay more than {sigmas:g} noise levels from the "
+            "cubic through their neighbours and were left out of the fit (--outliers off keeps them)",
+            highlight=False,
+        )
     if tracks is not None:
         err.print(
             f"fitted {len(result.ids)} track(s): RMS position residual median "
@@ -1364,6 +1401,15 @@ def _print_summary(summary: dict[str, Any], path: str) -> None:
                 f"the table's {record['tracks']} trajectories into pieces named ID#1, ID#2, ...; "
                 f"{record['short_pieces_dropped']} piece(s) under 3 samples dropped "
                 f"({record['short_piece_rows']} rows)",
+                soft_wrap=True,
+                highlight=False,
+            )
+        if record.get("outliers_dropped"):
+            stdout.print(
+                f"outliers: {record['outliers_dropped']} position(s) in {record['outlier_trajectories']} "
+                f"trajectories lay more than {_fmt(record['outlier_sigmas'])} noise levels from the cubic "
+                "through their neighbours (a tracker's glitches?) and were dropped "
+                "(--outliers off keeps them)",
                 soft_wrap=True,
                 highlight=False,
             )

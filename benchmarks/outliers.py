@@ -1,0 +1,85 @@
+"""A tracker's glitches on issue 14's table (``benchmarks/own_data.py``'s data: ``steady_vortex``
+with actuation, positions with 1 mm noise about every 0.05 s, 5 % of rows dropped): positions of
+a fraction of the rows moved by 2-50 cm in a random direction, then ``fhnn import`` with its
+defaults (``--outliers 8``). Prints how many glitches were put in, how many positions the import
+dropped, how many of those were glitches and how many glitches stayed; and, on the table without
+glitches, the largest residual in noise levels and what the import dropped (nothing, so that the
+import is the same as with ``--outliers off``).
+
+Usage::
+
+    python benchmarks/outliers.py [--out DIR] [--fraction F] [--seed K]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+from own_data import make_data, run_cli
+
+from fhnn.data.dataset import read_dataset
+from fhnn.data.derivatives import lagrange_residuals
+from fhnn.data.table import write_table
+
+
+def kept_samples(path: Path) -> set[tuple[str, float]]:
+    """``(traj_id, t)`` of every sample of an imported data set, on the table's clock."""
+    data = read_dataset(path)
+    record = data.extra["import"]
+    out = set()
+    for name, ids in record["traj_ids"].items():
+        split = data[name]
+        for i, traj in enumerate(ids):
+            times = split.times[i, : split.sample_counts[i]] + record["time_offset"]
+            out.update((traj, float(t)) for t in times)
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/_own_data"))
+    parser.add_argument("--fraction", type=float, default=0.002)
+    parser.add_argument("--seed", type=int, default=5)
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    fine, table, _, data, _ = make_data(args.out, 0)
+    record = read_dataset(data).extra["import"]
+    residuals = []
+    for traj in np.unique(table["traj_id"]):
+        rows = np.flatnonzero((table["traj_id"] == traj) & ~np.isnan(table["x"]))
+        rows = rows[np.argsort(table["t"][rows])]
+        residuals += [np.abs(lagrange_residuals(table["t"][rows], table[c][rows])) for c in ("x", "y")]
+    z = np.concatenate(residuals)
+    print(
+        f"without glitches: {int((~np.isnan(table['x'])).sum())} positions, the largest residual "
+        f"{z.max() / record['position_noise']:.1f} noise levels; the import dropped "
+        f"{record['outliers_dropped']} as glitches"
+    )
+    rng = np.random.default_rng(args.seed)
+    bad = {c: v.copy() for c, v in table.items()}
+    rows = np.flatnonzero(~np.isnan(bad["x"]))
+    pick = rng.choice(rows, int(args.fraction * rows.size), replace=False)
+    angle, size = rng.uniform(0, 2 * np.pi, pick.size), rng.uniform(0.02, 0.5, pick.size)
+    bad["x"][pick] += size * np.cos(angle)
+    bad["y"][pick] += size * np.sin(angle)
+    path = write_table(bad, args.out / "track_seed0_glitches.csv")
+    target = args.out / "track_seed0_glitches.h5"
+    target.unlink(missing_ok=True)
+    area = str(fine.body_params["A"])
+    run_cli("import", str(path), "-o", str(target), "--mass", "10", "--area", area, "-q")
+    kept = kept_samples(target)
+    glitches = {(str(bad["traj_id"][r]), float(bad["t"][r])) for r in pick}
+    every = {(str(bad["traj_id"][r]), float(bad["t"][r])) for r in rows}
+    dropped = every - kept
+    print(
+        f"with glitches of 2-50 cm in {args.fraction:.1%} of the rows ({pick.size}): the import dropped "
+        f"{len(dropped)} positions, {len(dropped & glitches)} of them glitches; {len(glitches & kept)} "
+        f"glitch(es) stayed; noise seen {read_dataset(target).obs_noise * 1e3:.4f} mm "
+        f"(without glitches {record['position_noise'] * 1e3:.4f} mm)"
+    )
+
+
+if __name__ == "__main__":
+    main()
