@@ -19,7 +19,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from own_data import make_data, run_cli
+from own_data import add_glitches, make_data, run_cli
 
 from fhnn.data.dataset import read_dataset
 from fhnn.data.derivatives import lagrange_residuals, noise_level
@@ -43,7 +43,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("benchmarks/_own_data"))
     parser.add_argument("--fraction", type=float, default=0.002)
-    parser.add_argument("--seed", type=int, default=5)
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the glitches (own_data.py: the data seed)"
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     fine, table, _, data, _ = make_data(args.out, 0)
@@ -59,13 +61,9 @@ def main() -> None:
         f"{z.max() / record['position_noise']:.1f} noise levels; the import dropped "
         f"{record['outliers_dropped']} as glitches"
     )
-    rng = np.random.default_rng(args.seed)
-    bad = {c: v.copy() for c, v in table.items()}
+    bad, pick = add_glitches(table, args.fraction, args.seed)
     rows = np.flatnonzero(~np.isnan(bad["x"]))
-    pick = rng.choice(rows, int(args.fraction * rows.size), replace=False)
-    angle, size = rng.uniform(0, 2 * np.pi, pick.size), rng.uniform(0.02, 0.5, pick.size)
-    bad["x"][pick] += size * np.cos(angle)
-    bad["y"][pick] += size * np.sin(angle)
+    rng = np.random.default_rng(args.seed)
     path = write_table(bad, args.out / "track_seed0_glitches.csv")
     target = args.out / "track_seed0_glitches.h5"
     target.unlink(missing_ok=True)

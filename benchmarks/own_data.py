@@ -23,11 +23,14 @@ the scoring reads the simulator's truth:
 Usage::
 
     python benchmarks/own_data.py [--out DIR] [--set NAME=VALUE ...] [--smoother NAME] [--seeds N]
-        [--no-forcing] [--noise STD] [--skip-speed] [--speed-only] [--reuse-run]
+        [--no-forcing] [--noise STD] [--glitches FRACTION] [--import-arg ARG ...] [--skip-speed]
+        [--speed-only] [--reuse-run]
 
 ``--set`` is passed to ``fhnn train`` (to compare settings on validation; the defaults are what
 the numbers in the README and the issue notes use). ``--noise`` changes the position noise (1 mm
-by default): with ``1e-6`` the errors left are the method's own, not the noise's.
+by default): with ``1e-6`` the errors left are the method's own, not the noise's. ``--glitches``
+moves a fraction of the positions by 2-50 cm (:func:`add_glitches`), and ``--import-arg`` passes
+arguments to ``fhnn import`` (``--import-arg=--outliers --import-arg=off``: keep the glitches).
 """
 
 from __future__ import annotations
@@ -66,20 +69,51 @@ def run_cli(*args: str) -> None:
 OBSERVED = {"step": 0.05, "jitter": 0.3, "drop": 0.05}
 
 
-def data_suffix(no_forcing: bool, noise: float) -> str:
-    """What the file names of a variant of the data carry: no forcing, another position noise."""
-    return ("_noforce" if no_forcing else "") + (f"_noise{noise:g}" if noise != 1e-3 else "")
+def data_suffix(no_forcing: bool, noise: float, glitches: float = 0.0) -> str:
+    """What the file names of a variant of the data carry: no forcing, another position noise,
+    glitches."""
+    return (
+        ("_noforce" if no_forcing else "")
+        + (f"_noise{noise:g}" if noise != 1e-3 else "")
+        + (f"_glitches{glitches:g}" if glitches else "")
+    )
+
+
+#: Seed stream of :func:`add_glitches` beside the data seed.
+GLITCH_STREAM = 7
+
+
+def add_glitches(table: dict, fraction: float, seed: int) -> tuple[dict, np.ndarray]:
+    """``table`` with the positions of a ``fraction`` of its rows (with values) moved by 2-50 cm in
+    a random direction — a tracker's glitches — and the rows moved."""
+    rng = np.random.default_rng([seed, GLITCH_STREAM])
+    bad = {c: v.copy() for c, v in table.items()}
+    rows = np.flatnonzero(~np.isnan(bad["x"]))
+    pick = rng.choice(rows, int(fraction * rows.size), replace=False)
+    angle, size = rng.uniform(0, 2 * np.pi, pick.size), rng.uniform(0.02, 0.5, pick.size)
+    bad["x"][pick] += size * np.cos(angle)
+    bad["y"][pick] += size * np.sin(angle)
+    return bad, pick
 
 
 def make_data(
-    out: Path, data_seed: int, *, no_forcing: bool = False, noise: float = 1e-3, smoother: str | None = None
+    out: Path,
+    data_seed: int,
+    *,
+    no_forcing: bool = False,
+    noise: float = 1e-3,
+    smoother: str | None = None,
+    glitches: float = 0.0,
+    import_args: tuple[str, ...] = (),
 ) -> tuple[Dataset, dict, dict, Path, float]:
     """Issue 14's data in ``out``: the fine simulation (simulated once, reused), the tracker's table
-    (noisy positions), the same table without noise and with velocities, and the imported data set
-    (``fhnn import``, every call). Returns ``(fine, table, table_clean, data path, import seconds)``."""
+    (noisy positions; with a fraction ``glitches`` of them glitched, :func:`add_glitches`), the
+    same table without noise and with velocities, and the imported data set (``fhnn import``,
+    every call, with ``import_args``, which tag its file). Returns ``(fine, table, table_clean,
+    data path, import seconds)``."""
     sc = get_scenario("steady_vortex")
     fine_path = out / f"fine_seed{data_seed}{'_noforce' if no_forcing else ''}.h5"
-    suffix = data_suffix(no_forcing, noise)
+    suffix = data_suffix(no_forcing, noise, glitches)
     if not fine_path.exists():
         config = SimulationConfig.for_scenario(
             sc,
@@ -95,13 +129,15 @@ def make_data(
     observed = dict(**OBSERVED, noise=noise, seed=data_seed + 1)
     table = observe(fine, **observed, forces=not no_forcing)
     table_clean = observe(fine, **{**observed, "noise": 0.0}, velocities=True)
+    if glitches:
+        table = add_glitches(table, glitches, data_seed)[0]
     csv = write_table(table, out / f"track_seed{data_seed}{suffix}.csv")
-    data = out / f"track_seed{data_seed}{suffix}.h5"
+    data = out / f"track_seed{data_seed}{suffix}{''.join(a.strip('-') for a in import_args)}.h5"
     start = time.perf_counter()
     data.unlink(missing_ok=True)
     area = str(fine.body_params["A"])
     extra = ["--smoother", smoother] if smoother else []
-    run_cli("import", str(csv), "-o", str(data), "--mass", "10", "--area", area, "-q", *extra)
+    run_cli("import", str(csv), "-o", str(data), "--mass", "10", "--area", area, "-q", *extra, *import_args)
     return fine, table, table_clean, data, time.perf_counter() - start
 
 
@@ -118,18 +154,28 @@ def with_truth(imported: Dataset, truth: Dataset) -> Dataset:
     )
 
 
+def clean_rows(table_clean: dict, imported: Dataset, name: str, i: int) -> np.ndarray:
+    """The rows of ``table_clean`` (in time order) at the imported samples of trajectory ``i`` of
+    split ``name`` (the import may have dropped glitches)."""
+    record = imported.extra["import"]
+    split = imported[name]
+    times = split.times[i, : split.sample_counts[i]] + record["time_offset"]
+    rows = np.flatnonzero(
+        (table_clean["traj_id"] == int(record["traj_ids"][name][i])) & np.isin(table_clean["t"], times)
+    )
+    rows = rows[np.argsort(table_clean["t"][rows])]
+    assert rows.size == times.size, "the clean table lacks imported samples"
+    return rows
+
+
 def clean_positions(table_clean: dict, imported: Dataset, name: str) -> np.ndarray:
     """The clean states at each imported sample of split ``name``, shape ``(N, T, 4)``."""
     split = imported[name]
     out = np.array(split.states)
-    ids = imported.extra["import"]["traj_ids"][name]
-    keep = ~np.isnan(table_clean["x"])
-    for i, traj in enumerate(ids):
-        rows = keep & (table_clean["traj_id"] == int(traj))
-        order = np.argsort(table_clean["t"][rows])
-        k = split.sample_counts[i]
+    for i in range(split.n_traj):
+        rows = clean_rows(table_clean, imported, name, i)
         for j, c in enumerate(("x", "y", "vx", "vy")):
-            out[i, :k, j] = table_clean[c][rows][order]
+            out[i, : rows.size, j] = table_clean[c][rows]
     return out
 
 
@@ -475,6 +521,18 @@ def main() -> None:
         action="store_true",
         help="the same data simulated without actuation and exported without Fx, Fy (identifiability)",
     )
+    p.add_argument(
+        "--glitches",
+        type=float,
+        default=0.0,
+        help="move this fraction of the table's positions by 2-50 cm (a tracker's glitches; tags the files)",
+    )
+    p.add_argument(
+        "--import-arg",
+        action="append",
+        default=[],
+        help="an argument for fhnn import, e.g. --import-arg=--outliers --import-arg=off (tags the files)",
+    )
     args = p.parse_args()
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -484,22 +542,26 @@ def main() -> None:
         print(speed_text(speed))
         return
     fine, table, table_clean, data, import_seconds = make_data(
-        out, args.data_seed, no_forcing=args.no_forcing, noise=args.noise, smoother=args.smoother
+        out,
+        args.data_seed,
+        no_forcing=args.no_forcing,
+        noise=args.noise,
+        smoother=args.smoother,
+        glitches=args.glitches,
+        import_args=tuple(args.import_arg),
     )
-    suffix = data_suffix(args.no_forcing, args.noise)
+    suffix = data_suffix(args.no_forcing, args.noise, args.glitches)
+    suffix += "".join(a.strip("-") for a in args.import_arg)
     imported = read_dataset(data)
     record = imported.extra["import"]
     # velocity estimate against the truth, over every imported sample
     vel_err = []
     for name in ("train", "val", "test"):
         split = imported[name]
-        keep = ~np.isnan(table_clean["x"])
-        for i, traj in enumerate(record["traj_ids"][name]):
-            rows = keep & (table_clean["traj_id"] == int(traj))
-            order = np.argsort(table_clean["t"][rows])
-            k = split.sample_counts[i]
-            true_v = np.stack([table_clean["vx"][rows][order], table_clean["vy"][rows][order]], axis=1)
-            vel_err.append((split.states[i, :k, 2:] - true_v).ravel())
+        for i in range(split.n_traj):
+            rows = clean_rows(table_clean, imported, name, i)
+            true_v = np.stack([table_clean["vx"][rows], table_clean["vy"][rows]], axis=1)
+            vel_err.append((split.states[i, : rows.size, 2:] - true_v).ravel())
     vel_rms = float(np.sqrt(np.mean(np.concatenate(vel_err) ** 2)))
     tag = "_".join(s.replace("=", "").replace(".", "") for s in args.set) or "defaults"
     tag += (f"_{args.smoother}" if args.smoother else "") + suffix
