@@ -264,8 +264,9 @@ def import_table(
         typer.Option(
             "--outliers",
             help="Drop a position more than this many noise levels from the cubic through its two "
-            "neighbours either side (a tracker's glitch; each track's first and last two samples are "
-            "not judged), counted in the summary; off: keep every sample.",
+            "neighbours either side (a tracker's glitch; one among a track's first or last two samples "
+            "shows in its neighbours' residuals only, so it must be larger to be seen), counted in the "
+            "summary; off: keep every sample.",
         ),
     ] = f"{OUTLIER_SIGMAS:g}",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
