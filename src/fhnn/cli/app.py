@@ -496,14 +496,14 @@ def train(
 def _windowless_note(run: Any, dataset: Any) -> list[str]:
     """A note where trajectories of the train or val split are too short for ``run``'s training
     windows (a user's tracks come in any length): they are left out of the loss; none otherwise."""
-    counts = run.windowless(dataset)
+    window, counts = run.windowless(dataset)
     if not any(short for short, _ in counts.values()):
         return []
     names = {"train": "training", "val": "validation"}
     parts = " and ".join(
         f"{short} of {total} {names[name]}" for name, (short, total) in counts.items() if short
     )
-    window, skip = run.check_windows(dataset), run.train_config.first_start
+    skip = run.train_config.first_start
     after = f" from sample {skip} on" if skip else ""
     hint = " (--set train.shoot=N for shorter windows)" if window == run.train_config.shoot else ""
     return [

@@ -345,12 +345,13 @@ class Run:
             ) from None
         return window
 
-    def windowless(self, dataset: Dataset) -> dict[str, tuple[int, int]]:
-        """``{split: (trajectories without a training window, trajectories)}`` for ``dataset``'s
-        train and val splits: those shorter than :meth:`check_windows`'s window (from sample
-        ``train.first_start``) add nothing to the loss on windows, nor to its validation."""
+    def windowless(self, dataset: Dataset) -> tuple[int, dict[str, tuple[int, int]]]:
+        """:meth:`check_windows`'s window and ``{split: (trajectories without such a window,
+        trajectories)}`` for ``dataset``'s train and val splits: those shorter than the window
+        (from sample ``train.first_start``) add nothing to the loss on windows, nor to its
+        validation."""
         window = self.check_windows(dataset)
-        return {
+        return window, {
             name: (Windows.without_window(split, window, skip=self.train_config.first_start), split.n_traj)
             for name, split in (("train", dataset.train), ("val", dataset.val))
         }
