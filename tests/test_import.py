@@ -8,6 +8,7 @@ import json
 import operator
 import re
 import shutil
+from pathlib import Path
 
 import equinox as eqx
 import h5py
@@ -71,6 +72,13 @@ def fine():
     return small_dataset("steady_vortex", n_traj=12, duration=6.0, test_duration=6.0, dt=0.01, seed=2)
 
 
+def _import(table: Path, out: Path, *extra: str) -> None:
+    """``fhnn import TABLE -o OUT --mass 10 --area 0.1 EXTRA…``, which must succeed."""
+    with pytest.raises(SystemExit) as info:
+        main(["import", str(table), "-o", str(out), "--mass", "10", "--area", "0.1", *extra])
+    assert info.value.code == 0
+
+
 @pytest.fixture(scope="module")
 def imported(fine, tmp_path_factory):
     """The table a tracker would record of ``fine`` (positions with 1 mm noise, times jittered by
@@ -80,21 +88,7 @@ def imported(fine, tmp_path_factory):
     write_table(table, folder / "track.csv")
     write_table(table, folder / "track.parquet")
     for name in ("track.csv", "track.parquet"):
-        with pytest.raises(SystemExit) as info:
-            main(
-                [
-                    "import",
-                    str(folder / name),
-                    "-o",
-                    str(folder / f"{name}.h5"),
-                    "--mass",
-                    "10",
-                    "--area",
-                    "0.1",
-                    "-q",
-                ]
-            )
-        assert info.value.code == 0
+        _import(folder / name, folder / f"{name}.h5", "-q")
     return folder, table
 
 
@@ -163,12 +157,9 @@ def test_an_outage_splits_a_track_into_pieces_that_stay_in_one_split(imported, c
     folder, table = imported
     keep = ~((np.isin(table["traj_id"], (2, 5))) & (table["t"] > 2.0) & (table["t"] < 4.0))
     write_table({c: v[keep] for c, v in table.items()}, folder / "outage.csv")
-    args = ["import", str(folder / "outage.csv"), "--mass", "10", "--area", "0.1"]
     capsys.readouterr()
-    for out, extra in (("outage.h5", []), ("outage_inf.h5", ["--max-gap", "inf", "-q"])):
-        with pytest.raises(SystemExit) as info:
-            main([*args, "-o", str(folder / out), *extra])
-        assert info.value.code == 0
+    _import(folder / "outage.csv", folder / "outage.h5")
+    _import(folder / "outage.csv", folder / "outage_inf.h5", "--max-gap", "inf", "-q")
     said = " ".join(capsys.readouterr().out.split())
     assert (
         "gaps: 2 gap(s) longer than 10x the trajectory's median step split 2 of the table's 12 trajectories "
@@ -234,12 +225,9 @@ def test_import_drops_glitches_says_so_and_keeps_them_when_told(imported, capsys
     pick = np.random.default_rng(3).choice(inner, int(0.003 * rows.size), replace=False)
     table["x"][pick] += np.random.default_rng(4).uniform(0.02, 0.3, pick.size)
     write_table(table, folder / "glitches.csv")
-    args = ["import", str(folder / "glitches.csv"), "--mass", "10", "--area", "0.1"]
     capsys.readouterr()
-    for out, extra in (("glitches.h5", []), ("glitches_kept.h5", ["--outliers", "off", "-q"])):
-        with pytest.raises(SystemExit) as info:
-            main([*args, "-o", str(folder / out), *extra])
-        assert info.value.code == 0
+    _import(folder / "glitches.csv", folder / "glitches.h5")
+    _import(folder / "glitches.csv", folder / "glitches_kept.h5", "--outliers", "off", "-q")
     said = " ".join(capsys.readouterr().out.split())
     data, kept = read_dataset(folder / "glitches.h5"), read_dataset(folder / "glitches_kept.h5")
     record, clean = data.extra["import"], read_dataset(folder / "track.csv.h5")
@@ -680,9 +668,7 @@ def test_training_leaves_out_and_names_tracks_shorter_than_its_windows(imported,
         keep[rows[np.argsort(table["t"][rows])[25:]]] = False
     write_table({c: v[keep] for c, v in table.items()}, folder / "short.csv")
     data, run = folder / "short.h5", folder / "short_run"
-    with pytest.raises(SystemExit) as info:
-        main(["import", str(folder / "short.csv"), "-o", str(data), "--mass", "10", "--area", "0.1", "-q"])
-    assert info.value.code == 0
+    _import(folder / "short.csv", data, "-q")
     dataset = read_dataset(data)
     short = {name: int(np.sum(dataset[name].sample_counts < 40)) for name in ("train", "val")}
     assert short["train"] > 0, short  # the split's seed puts some of the four into training

@@ -91,6 +91,24 @@ class Trajectory:
     vel: np.ndarray | None
     force: np.ndarray | None
 
+    def take(self, index: np.ndarray | slice, traj_id: str | None = None) -> Trajectory:
+        """The samples ``index`` (a mask, indices or a slice) of this trajectory, named
+        ``traj_id`` (default: its own id)."""
+        pick = lambda a: None if a is None else a[index]  # noqa: E731
+        return Trajectory(
+            self.traj_id if traj_id is None else traj_id,
+            self.t[index],
+            self.pos[index],
+            pick(self.vel),
+            pick(self.force),
+        )
+
+
+def _position_series(trajectories: list[Trajectory]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``[(t, x), (t, y)]`` of every trajectory, in order: the series
+    :func:`~fhnn.data.derivatives.noise_level` and the smoothers take."""
+    return [(tr.t, tr.pos[:, k]) for tr in trajectories for k in range(2)]
+
 
 @dataclasses.dataclass(frozen=True)
 class Table:
@@ -559,26 +577,33 @@ def drop_outliers(pieces: list[Trajectory], noise: float, sigmas: float) -> tupl
             continue
         dropped += int((~keep).sum())
         touched += 1
-        out.append(
-            Trajectory(
-                tr.traj_id,
-                tr.t[keep],
-                tr.pos[keep],
-                None if tr.vel is None else tr.vel[keep],
-                None if tr.force is None else tr.force[keep],
-            )
-        )
+        out.append(tr.take(keep))
     return out, dropped, touched
 
 
+def without_outliers(
+    trajectories: list[Trajectory], sigmas: float | None
+) -> tuple[list[Trajectory], float, int, int]:
+    """:func:`drop_outliers` at the noise level the trajectories' own positions show (``sigmas``
+    None: none dropped): ``(trajectories, noise level of what is kept [m], samples dropped,
+    trajectories with a drop)``. What ``fhnn import`` does to a table and ``fhnn predict`` to a
+    ``--history``."""
+    noise = noise_level(_position_series(trajectories))
+    if sigmas is None:
+        return trajectories, noise, 0, 0
+    kept, dropped, touched = drop_outliers(trajectories, noise, sigmas)
+    if dropped:
+        noise = noise_level(_position_series(kept))
+    return kept, noise, dropped, touched
+
+
 def drop_table_outliers(table: Table, sigmas: float | None) -> tuple[Table, int]:
-    """``table`` without its glitches (:func:`drop_outliers` at the noise level its own positions
-    show; ``sigmas`` None: unchanged) and how many positions went: what ``fhnn predict`` does to
-    a ``--history`` before fitting start states to it, as ``fhnn import`` does to the data."""
+    """``table`` without its glitches (:func:`without_outliers`; ``sigmas`` None: unchanged) and
+    how many positions went: what ``fhnn predict`` does to a ``--history`` before fitting start
+    states to it."""
     if sigmas is None:
         return table, 0
-    noise = noise_level([(tr.t, tr.pos[:, k]) for tr in table.trajectories for k in range(2)])
-    kept, dropped, _ = drop_outliers(table.trajectories, noise, sigmas)
+    kept, _, dropped, _ = without_outliers(table.trajectories, sigmas)
     return dataclasses.replace(table, trajectories=kept), dropped
 
 
@@ -622,16 +647,7 @@ def split_at_gaps(trajectories: list[Trajectory], max_gap: float | None) -> GapS
                 short_pieces += 1
                 short_rows += int(b - a)
                 continue
-            part = slice(a, b)
-            pieces.append(
-                Trajectory(
-                    f"{tr.traj_id}#{j + 1}",
-                    tr.t[part],
-                    tr.pos[part],
-                    None if tr.vel is None else tr.vel[part],
-                    None if tr.force is None else tr.force[part],
-                )
-            )
+            pieces.append(tr.take(slice(a, b), f"{tr.traj_id}#{j + 1}"))
             track.append(k)
     return GapSplit(pieces, np.asarray(track, dtype=np.int64), gaps, split_tracks, short_pieces, short_rows)
 
@@ -701,14 +717,8 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     has_vel = trajs[0].vel is not None
     has_force = trajs[0].force is not None
     t0 = min(float(tr.t[0]) for tr in trajs)
-    series = [(tr.t, tr.pos[:, k]) for tr in trajs for k in range(2)]
-    pos_noise = noise_level(series)
-    outliers = touched = 0
-    if settings.outlier_sigmas is not None:
-        trajs, outliers, touched = drop_outliers(trajs, pos_noise, settings.outlier_sigmas)
-        if outliers:  # the noise level of what is kept
-            series = [(tr.t, tr.pos[:, k]) for tr in trajs for k in range(2)]
-            pos_noise = noise_level(series)
+    trajs, pos_noise, outliers, touched = without_outliers(trajs, settings.outlier_sigmas)
+    series = _position_series(trajs)
     smoother = choose_smoother(settings.smoother, table.rows)
     vel_noise = vel_error = None
     if has_vel:  # the acceleration of each measured velocity
