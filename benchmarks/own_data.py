@@ -69,13 +69,16 @@ def run_cli(*args: str) -> None:
 OBSERVED = {"step": 0.05, "jitter": 0.3, "drop": 0.05}
 
 
-def data_suffix(no_forcing: bool, noise: float, glitches: float = 0.0) -> str:
+def data_suffix(
+    no_forcing: bool, noise: float, glitches: float = 0.0, import_args: tuple[str, ...] | list[str] = ()
+) -> str:
     """What the file names of a variant of the data carry: no forcing, another position noise,
-    glitches."""
+    glitches, and (imported data sets and runs only) the arguments given to ``fhnn import``."""
     return (
         ("_noforce" if no_forcing else "")
         + (f"_noise{noise:g}" if noise != 1e-3 else "")
         + (f"_glitches{glitches:g}" if glitches else "")
+        + "".join(a.strip("-") for a in import_args)
     )
 
 
@@ -132,7 +135,7 @@ def make_data(
     if glitches:
         table = add_glitches(table, glitches, data_seed)[0]
     csv = write_table(table, out / f"track_seed{data_seed}{suffix}.csv")
-    data = out / f"track_seed{data_seed}{suffix}{''.join(a.strip('-') for a in import_args)}.h5"
+    data = out / f"track_seed{data_seed}{data_suffix(no_forcing, noise, glitches, import_args)}.h5"
     start = time.perf_counter()
     data.unlink(missing_ok=True)
     area = str(fine.body_params["A"])
@@ -550,8 +553,7 @@ def main() -> None:
         glitches=args.glitches,
         import_args=tuple(args.import_arg),
     )
-    suffix = data_suffix(args.no_forcing, args.noise, args.glitches)
-    suffix += "".join(a.strip("-") for a in args.import_arg)
+    suffix = data_suffix(args.no_forcing, args.noise, args.glitches, args.import_arg)
     imported = read_dataset(data)
     record = imported.extra["import"]
     # velocity estimate against the truth, over every imported sample
