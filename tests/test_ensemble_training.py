@@ -132,18 +132,21 @@ def test_what_cannot_run_together(tmp_path, data):
     assert not can_run_together(trainers, done)
 
 
-def test_bootstrap_weights_resample_whole_trajectories():
-    """Each window is weighted by its trajectory's count in a draw of n from n with replacement:
-    the same seed gives the same resample, another seed another; the counts sum to n and leave
-    out about 1/e of the trajectories (here 2,000 of them)."""
+def test_bootstrap_weights_weight_whole_trajectories():
+    """Each window takes its trajectory's Bayesian-bootstrap weight: the same seed gives the same
+    weights, another seed others; every weight is positive (no trajectory left out), they sum to
+    n, and n times a flat Dirichlet draw is about exponential with mean 1 (here 2,000
+    trajectories: the share below 1/2 is 1 − e^(−1/2) = 0.39, the variance (n − 1)/(n + 1))."""
     traj = np.repeat(np.arange(2000), 3)
     w = bootstrap_weights(traj, 2000, seed=4)
     np.testing.assert_array_equal(w, bootstrap_weights(traj, 2000, seed=4))
-    assert not np.array_equal(w, bootstrap_weights(traj, 2000, seed=5))
-    counts = w.reshape(2000, 3)
-    assert np.all(counts == counts[:, :1])  # one weight per trajectory
-    assert counts[:, 0].sum() == 2000
-    assert abs(np.mean(counts[:, 0] == 0) - np.exp(-1)) < 0.03
+    assert not np.allclose(w, bootstrap_weights(traj, 2000, seed=5))
+    weights = w.reshape(2000, 3)
+    assert np.all(weights == weights[:, :1])  # one weight per trajectory
+    assert weights.min() > 0
+    np.testing.assert_allclose(weights[:, 0].sum(), 2000, rtol=1e-12)
+    assert abs(np.mean(weights[:, 0] < 0.5) - (1 - np.exp(-0.5))) < 0.035
+    assert abs(np.var(weights[:, 0]) - 1999 / 2001) < 0.1
 
 
 def test_draw_batch_follows_the_weights():
@@ -162,19 +165,25 @@ def test_draw_batch_follows_the_weights():
 
 
 def test_quasi_newton_windows_of_a_bootstrap_member(data):
-    """A bootstrap member's quasi-Newton phases see only the trajectories its resample drew, as
-    many windows as a plain member's (the compiled program's shape), with repeats."""
+    """A bootstrap member's quasi-Newton phases draw as many windows as a plain member's (the
+    compiled program's shape), from the same starts, with replacement in proportion to its
+    trajectories' weights: repeats, and the trajectory of largest weight drawn more often per
+    window than the one of smallest."""
     plain = Trainer(CONFIG, data.train, data.val)
-    traj = plain.train_pairs.traj
-    n = data.train.n_traj
-    seed = next(s for s in range(100) if bootstrap_weights(traj, n, s).min() == 0)  # one left out
-    boot = Trainer(CONFIG.replace(bootstrap=True, seed=seed), data.train, data.val)
+    boot = Trainer(CONFIG.replace(bootstrap=True, seed=3), data.train, data.val)
     a, b = plain.quasi_newton_windows(), boot.quasi_newton_windows()
     assert len(a) == len(b) == min(CONFIG.lbfgs_pairs, len(plain.train_pairs))
-    drawn = np.unique(boot.train_pairs.traj[boot.window_weights > 0])
-    assert set(np.unique(b.traj)) <= set(drawn) and len(drawn) < n
     assert len(np.unique(a.start * 1000 + a.traj)) == len(a)  # plain: distinct windows
+    assert len(np.unique(b.start * 1000 + b.traj)) < len(b)  # drawn with replacement
+    pool = (boot.train_pairs.start - CONFIG.first_start) % CONFIG.lbfgs_stride == 0
+    allowed = boot.train_pairs.start[pool] * 1000 + boot.train_pairs.traj[pool]
+    assert set(b.start * 1000 + b.traj) <= set(allowed)  # the plain member's starts
     assert plain.window_weights is None
+    traj, w = boot.train_pairs.traj, boot.window_weights
+    per_traj = np.array([w[traj == k][0] for k in range(data.train.n_traj)])
+    heavy, light = int(np.argmax(per_traj)), int(np.argmin(per_traj))
+    share = [np.sum(b.traj == k) / np.sum(traj == k) for k in (heavy, light)]
+    assert share[0] > share[1]
 
 
 def test_an_ensemble_interval_holds_a_new_draw_nine_times_in_ten():
