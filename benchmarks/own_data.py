@@ -444,7 +444,7 @@ def ensemble_scores(
     previous: dict | None = None,
 ) -> dict:
     """``fhnn train --seeds n`` on the same data and settings (every member on its own bootstrap
-    resample of the training trajectories, the command's default), then each coefficient's and
+    weighting of the training trajectories, the command's default), then each coefficient's and
     ratio's 90 % interval against the truth
     (:func:`fhnn.experiments.exports.ensemble_intervals`) and ``fhnn predict``'s band on the held-out
     tracks: the share of forecast positions whose truth lies inside the band at each time.

@@ -150,7 +150,9 @@ def test_inspect_gives_the_members_median_and_intervals(ensemble, capsys):
     assert (
         re.search(r"│ +drag │", out) and "the data fix their sum, the total drag coefficient drag =" in said
     )
-    assert "members trained on bootstrap resamples, so it holds the data's sampling noise" in said
+    assert (
+        "members trained on bootstrap weightings of the data, so it holds the data's sampling noise" in said
+    )
 
 
 def test_predict_from_an_ensemble_gives_the_median_and_a_band(ensemble, capsys):

@@ -386,7 +386,7 @@ def train(
         int | None,
         typer.Option(
             help="Seed of initialisation and batch order, and of an ensemble member's bootstrap "
-            "resample (train.seed) [default: 0]"
+            "weights (train.seed) [default: 0]"
         ),
     ] = None,
     max_time: Annotated[
@@ -404,7 +404,8 @@ def train(
         typer.Option(
             "--seeds",
             help="Train an ensemble of N runs with seeds --seed … --seed+N−1 into RUN/seed-S, each on "
-            "its own bootstrap resample of the training trajectories (--set train.bootstrap=false: "
+            "its own Bayesian bootstrap of the training trajectories (each weighted at random; "
+            "--set train.bootstrap=false: "
             "all on the same data), their Adam phases as one program (fhnn inspect and predict then "
             "give 90 % intervals over the members) [default: 1, one run]",
         ),
@@ -1130,7 +1131,8 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
         f"the interval: the members' mean ± t({0.5 + LEVEL / 2:g}; {len(models) - 1}) · s · "
         f"√(1 + 1/{len(models)}) "
         + (
-            "— members trained on bootstrap resamples, so it holds the data's sampling noise and the "
+            "— members trained on bootstrap weightings of the data, so it holds the data's sampling "
+            "noise and the "
             "initialisation's"
             if bootstrap
             else "— members trained on the same data: it holds their initialisation and batch order, "

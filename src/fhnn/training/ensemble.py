@@ -19,16 +19,18 @@ the quasi-Newton phases, whose line searches differ from member to member, stay 
 of a default-plan run on ``solid_body_vortex`` (its warm-up is kept, Adam skipped), about three
 quarters of one on ``steady_vortex``.
 
-``fhnn train --seeds N`` trains each member on its own bootstrap resample of the training
-trajectories (``train.bootstrap``; ``--set train.bootstrap=false`` trains all on the same data),
-so the members' spread holds the data's sampling noise besides the initialisation's and the batch
-order's. ``fhnn inspect`` reports it as a 90 % interval at each point (:func:`interval`): the
-members' mean ± ``t(0.95; N−1) · s · √(1 + 1/N)``, ``s`` their standard deviation — the interval
-that holds a value drawn like the members with 90 % probability, which is what the truth is to a
-bagged estimate; the percentiles of a handful of members cover the truth far less often than
-they claim (three members' 5th–95th percentiles span about 0.9 of their range, which holds a
-fourth draw half of the time). ``fhnn predict``'s band pools every member's forecasts from many
-start states, enough for its 5th–95th percentiles (:data:`INTERVAL`).
+``fhnn train --seeds N`` trains each member on its own Bayesian bootstrap of the training
+trajectories (``train.bootstrap``: every trajectory weighted by a random positive weight of mean
+1, :func:`~fhnn.training.trainer.bootstrap_weights`; ``--set train.bootstrap=false`` trains all
+on the same data), so the members' spread holds the data's sampling noise besides the
+initialisation's and the batch order's. ``fhnn inspect`` reports it as a 90 % interval at each
+point (:func:`interval`): the members' mean ± ``t(0.95; N−1) · s · √(1 + 1/N)``, ``s`` their
+standard deviation — the interval that holds a value drawn like the members with 90 %
+probability, which is what the truth is to a bagged estimate; the percentiles of a handful of
+members cover the truth far less often than they claim (three members' 5th–95th percentiles span
+about 0.9 of their range, which holds a fourth draw half of the time). ``fhnn predict``'s band
+pools every member's forecasts from many start states, enough for its 5th–95th percentiles
+(:data:`INTERVAL`).
 """
 
 from __future__ import annotations
