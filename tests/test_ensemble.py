@@ -151,7 +151,8 @@ def test_inspect_gives_the_members_median_and_intervals(ensemble, capsys):
         re.search(r"│ +drag │", out) and "the data fix their sum, the total drag coefficient drag =" in said
     )
     assert (
-        "members trained on bootstrap weightings of the data, so it holds the data's sampling noise" in said
+        "members trained on bootstrap weightings of the data, so it holds the data's sampling noise and "
+        "the initialisation's, not a bias that every member shares" in said
     )
 
 

@@ -1132,8 +1132,8 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
         f"√(1 + 1/{len(models)}) "
         + (
             "— members trained on bootstrap weightings of the data, so it holds the data's sampling "
-            "noise and the "
-            "initialisation's"
+            "noise and the initialisation's, not a bias that every member shares (such as the "
+            "split of the drag between c_q and c_l)"
             if bootstrap
             else "— members trained on the same data: it holds their initialisation and batch order, "
             "not the data's sampling noise"
