@@ -144,6 +144,12 @@ def make_data(
     return fine, table, table_clean, data, time.perf_counter() - start
 
 
+def run_folder(out: Path, data_seed: int, tag: str) -> Path:
+    """The folder of the single run trained on data seed ``data_seed`` with the settings ``tag``
+    (``"defaults"``: ``fhnn train``'s own) in ``out``."""
+    return out / f"run_seed{data_seed}_{tag}"
+
+
 def with_truth(imported: Dataset, truth: Dataset) -> Dataset:
     """``imported`` with the simulator's scenario and body: the recovery functions then score it."""
     return Dataset(
@@ -567,7 +573,7 @@ def main() -> None:
     vel_rms = float(np.sqrt(np.mean(np.concatenate(vel_err) ** 2)))
     tag = "_".join(s.replace("=", "").replace(".", "") for s in args.set) or "defaults"
     tag += (f"_{args.smoother}" if args.smoother else "") + suffix
-    run = out / f"run_seed{args.data_seed}_{tag}"
+    run = run_folder(out, args.data_seed, tag)
     sets = [x for s in args.set for x in ("--set", s)]
     start = time.perf_counter()
     previous = out / f"result_seed{args.data_seed}_{tag}.json"
@@ -609,7 +615,7 @@ def main() -> None:
     if not args.skip_speed:
         result["import_speed"] = import_speed(out)
     text = json.dumps(result, indent=2)
-    (out / f"result_seed{args.data_seed}_{tag}.json").write_text(text)
+    previous.write_text(text)
     print(text)
     print(
         f"import {import_seconds:.1f} s, noise seen {record['position_noise'] * 1e3:.3f} mm "

@@ -19,7 +19,7 @@ import argparse
 from pathlib import Path
 
 import equinox as eqx
-from own_data import with_truth
+from own_data import make_data, run_folder, with_truth
 
 from fhnn.data.dataset import read_dataset
 from fhnn.errors import DataFormatError
@@ -28,14 +28,15 @@ from fhnn.training.run import Run
 
 def truth_loss(out: Path, seed: int) -> dict[str, float]:
     """The validation losses ``{"learned": …, "truth": …}`` on data seed ``seed`` in ``out``."""
-    run_folder = out / f"run_seed{seed}_defaults"
-    if not (run_folder / "run.json").exists():
+    folder = run_folder(out, seed, "defaults")
+    if not (folder / "run.json").exists():
         raise DataFormatError(
-            f"{run_folder}: no trained run; run benchmarks/own_data.py --data-seed {seed} first"
+            f"{folder}: no trained run; run benchmarks/own_data.py --data-seed {seed} first"
         )
-    imported = read_dataset(out / f"track_seed{seed}.h5")
-    scored = with_truth(imported, read_dataset(out / f"fine_seed{seed}.h5"))
-    run = Run.load(run_folder)
+    fine, _, _, data, _ = make_data(out, seed)  # imported again, as own_data.py --reuse-run does
+    imported = read_dataset(data)
+    scored = with_truth(imported, fine)
+    run = Run.load(folder)
     trainer = run.trainer(imported)
     learned = run.state.best_model
     truth = eqx.tree_at(lambda m: m.eom, learned, scored.equations())

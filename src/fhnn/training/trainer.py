@@ -572,7 +572,7 @@ class Trainer:
         if self.window_weights is None:
             pick = rng.choice(pool.size, n, replace=False)
         else:  # a bootstrap member: drawn with replacement in proportion to the weights
-            w = self.window_weights[pool].astype(float)
+            w = self.window_weights[pool]
             pick = rng.choice(pool.size, n, replace=True, p=w / w.sum())
         return self.train_pairs.subset(pool[np.sort(pick)])
 
