@@ -26,10 +26,18 @@ FHNN's nets (flow and coefficients as functions) have more freedom than either, 
 only be larger. The bound says whether a target can be met with these data at all: a 90 %
 interval of an unbiased estimate is at least ``2 · 1.645 · sd`` wide.
 
+``--window W`` cuts every track into windows of ``W`` observed samples (each observation in one),
+each solved from a start state of its own, as ``fhnn train``'s multi-step loss sees the data
+(windows of 40 samples on estimated velocities): the information such windows hold. With
+``--start-prior`` each window's start is known besides to the import's position noise and
+velocity error (:func:`fhnn.data.table.start_errors`, what the loss's weighting assumes). The
+loss's windows overlap and its nets are smooth, so for it these numbers are a guide, not a strict
+bound.
+
 Usage::
 
     python benchmarks/own_data_bound.py [--out DIR] [--data-seed K] [--no-forcing] [--noise STD]
-        [--knots K]
+        [--knots K] [--window W [--start-prior]]
 
 ``--out`` is ``own_data.py``'s folder (default ``benchmarks/_own_data``): its data are reused
 (simulated and imported as ``own_data.py`` does where they are not there).
@@ -48,6 +56,7 @@ import numpy as np
 from own_data import data_suffix, make_data, with_truth
 
 from fhnn.data.dataset import read_dataset
+from fhnn.data.table import start_errors
 from fhnn.evaluation.recovery import SIGMA_BANDS, drag_terms, visited_r_sigma
 from fhnn.physics.actuation import actuation_force
 from fhnn.physics.body import AbstractLaw, CoefficientLaws, Constant
@@ -123,26 +132,63 @@ def parametrised(truth, family: str, knots: np.ndarray):
     return build, names
 
 
-def fisher(build, n_par: int, starts: np.ndarray, actuation: np.ndarray, ts: np.ndarray, rows: list):
+def fisher(
+    build,
+    n_par: int,
+    starts: np.ndarray,
+    actuation: np.ndarray,
+    ts: np.ndarray,
+    rows: list,
+    prior: np.ndarray | None = None,
+):
     """The Fisher information ``(n_par, n_par)`` of the free parameters for unit noise, each
-    trajectory's start state eliminated; ``rows[i]``: the grid indices at which trajectory ``i``'s
-    position was observed."""
+    piece's start state eliminated; a piece ``i`` starts at ``starts[i]`` (its true state at
+    ``ts[i, 0]``), is solved over the grid ``ts[i]`` ``(T,)`` (rows of one shape: padded with later
+    times) under the forcing ``actuation[i]``, and ``rows[i]`` are the grid indices at which its
+    position was observed. ``prior`` ``(4,)``: the information on each start state besides its
+    observations, in units of the noise's (``σ_n² / var`` of the start's position and velocity;
+    ``None``: none, the start is free)."""
 
-    def positions(z, p):
+    def positions(z, p, times):
         eom = build(z[:n_par])
-        return rk4_solve(lambda s, t: eom(s, t, actuation_force(p, t)), z[n_par:], jnp.asarray(ts))[:, :2]
+        return rk4_solve(lambda s, t: eom(s, t, actuation_force(p, t)), z[n_par:], times)[:, :2]
 
-    jac = jax.jit(jax.vmap(jax.jacfwd(positions), in_axes=(0, 0)))
+    jac = jax.jit(jax.vmap(jax.jacfwd(positions), in_axes=(0, 0, 0)))
     z0 = np.concatenate([np.zeros((len(starts), n_par)), starts], axis=1)
+    extra = np.zeros((4, 4)) if prior is None else np.diag(prior)
     total = np.zeros((n_par, n_par))
     for lo in range(0, len(starts), 16):
-        sens = np.asarray(jac(jnp.asarray(z0[lo : lo + 16]), jnp.asarray(actuation[lo : lo + 16])))
+        part = slice(lo, lo + 16)
+        sens = np.asarray(jac(jnp.asarray(z0[part]), jnp.asarray(actuation[part]), jnp.asarray(ts[part])))
         for i, j in enumerate(sens):
             obs = j[rows[lo + i]].reshape(-1, n_par + 4)  # (2·observed, parameters + start)
             info = obs.T @ obs
-            a, b, c = info[:n_par, :n_par], info[:n_par, n_par:], info[n_par:, n_par:]
+            a, b, c = info[:n_par, :n_par], info[:n_par, n_par:], info[n_par:, n_par:] + extra
             total += a - b @ np.linalg.solve(c, b.T)
     return total
+
+
+def pieces(
+    states: np.ndarray, actuation: np.ndarray, ts: np.ndarray, rows: list, window: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+    """The arguments ``(starts, actuation, ts, rows)`` of :func:`fisher` for the trajectories whose
+    true states are ``states`` ``(N, T, 4)`` on the grid ``ts`` ``(T,)``, observed at the grid
+    indices ``rows[i]``: whole (``window`` 0, each solved from the grid's start), or cut into
+    windows of ``window`` observed samples, each observation in one window (a last one under 3
+    samples dropped), each solved from its first observation's true state as a training window of
+    the multi-step loss is."""
+    if not window:
+        return states[:, 0], actuation, np.broadcast_to(ts, (len(states), ts.size)), rows
+    cut = [(i, r[k : k + window]) for i, r in enumerate(rows) for k in range(0, len(r), window)]
+    cut = [(i, r) for i, r in cut if len(r) >= 3]
+    span = max(int(r[-1] - r[0]) for _, r in cut) + 1
+    dt = ts[1] - ts[0]
+    return (
+        np.stack([states[i, r[0]] for i, r in cut]),
+        np.stack([actuation[i] for i, _ in cut]),
+        np.stack([ts[r[0]] + dt * np.arange(span) for _, r in cut]),
+        [r - r[0] for _, r in cut],
+    )
 
 
 def bound(info: np.ndarray, rcond: float = 1e-10) -> tuple[np.ndarray, int]:
@@ -207,7 +253,17 @@ def main() -> None:
     p.add_argument("--no-forcing", action="store_true")
     p.add_argument("--noise", type=float, default=1e-3, help="std of the position noise [m]")
     p.add_argument("--knots", type=int, default=8, help="knots of the coefficients free in σ")
+    p.add_argument(
+        "--window", type=int, default=0, help="cut the tracks into windows of this many samples (0: whole)"
+    )
+    p.add_argument(
+        "--start-prior",
+        action="store_true",
+        help="each window's start known to the import's position noise and velocity error",
+    )
     args = p.parse_args()
+    if args.window < 0 or args.window in (1, 2) or (args.start_prior and not args.window):
+        raise SystemExit("--window must be 0 or at least 3 samples; --start-prior needs --window")
     args.out.mkdir(parents=True, exist_ok=True)
     fine, table, _, data, _ = make_data(
         args.out, args.data_seed, no_forcing=args.no_forcing, noise=args.noise
@@ -222,7 +278,7 @@ def main() -> None:
     ts = splits[0].t
     if any(s.t.shape != ts.shape or not np.allclose(s.t, ts) for s in splits):
         raise SystemExit("the fine data's splits must share one time grid")
-    starts = np.concatenate([s.states_clean[:, 0] for s in splits])
+    states = np.concatenate([s.states_clean for s in splits])
     actuation = np.concatenate([s.actuation for s in splits])
     ids = [int(k) for k in imported.extra["import"]["traj_ids"]["train"]]
     seen = ~np.isnan(table["x"])
@@ -237,8 +293,15 @@ def main() -> None:
     )
     share = quad / drag
     knots = np.quantile(points[:, 1], np.linspace(0.0, 1.0, args.knots))
+    starts, forcing, grids, observed = pieces(states[ids], actuation[ids], ts, rows, args.window)
+    prior = None
+    if args.start_prior:  # the start's errors as fhnn train's multi-step loss weighs them
+        sx, sv = start_errors(imported)
+        prior = (args.noise / np.array([sx, sx, sv, sv])) ** 2
     out: dict = {
         "data_seed": args.data_seed,
+        "window": args.window,
+        "start_prior": None if prior is None else prior.tolist(),
         "forcing": not args.no_forcing,
         "noise": args.noise,
         "trajectories": len(ids),
@@ -248,10 +311,16 @@ def main() -> None:
     print(
         f"own data, data seed {args.data_seed}, {'with' if not args.no_forcing else 'without'} forcing, "
         f"noise {args.noise * 1e3:g} mm: {len(ids)} training trajectories, {out['observations']} positions"
+        + (
+            f"; cut into {len(starts)} windows of {args.window} samples, each from its own start state"
+            + (f" (known to ±{sx * 1e3:.3g} mm, ±{sv * 1e3:.3g} mm/s)" if prior is not None else " (free)")
+            if args.window
+            else ""
+        )
     )
     for family in FAMILIES:
         build, names = parametrised(truth, family, knots)
-        info = fisher(build, len(names), starts[ids], actuation[ids], ts, rows) / args.noise**2
+        info = fisher(build, len(names), starts, forcing, grids, observed, prior) / args.noise**2
         cov, dropped = bound(info)
         d = derived(build, names, cov, jnp.asarray(points), body)
         pp = d["per_point"]
@@ -293,7 +362,8 @@ def main() -> None:
                 f"    {b['sigma'][0]:.3f}–{b['sigma'][1]:.3f} m/s ({b['quadratic_share']:4.0%}): "
                 f"{b['c_q_sd_max']:.2%} (±{LEVEL_Z * b['c_q_sd_max']:.1%}); {b['drag_sd_max']:.3%}"
             )
-    path = args.out / f"bound_seed{args.data_seed}{data_suffix(args.no_forcing, args.noise)}.json"
+    cut = (f"_window{args.window}" if args.window else "") + ("_prior" if prior is not None else "")
+    path = args.out / f"bound_seed{args.data_seed}{data_suffix(args.no_forcing, args.noise)}{cut}.json"
     path.write_text(json.dumps(out, indent=1))
     print(f"\nwrote {path}")
 

@@ -1,12 +1,17 @@
-"""Does the training objective prefer the truth on issue 14's data? The validation loss of the truth.
+"""Does the training objective prefer the truth on issue 14's data? Its loss at the truth.
 
 ``benchmarks/own_data.py`` trains FHNN on a tracker's positions and finds the added masses, but on
 most fits a quadratic drag ``c_q`` nearly flat in σ with the linear drag ``c_l`` several percent too
 high (``docs/benchmarks/own_data_seeds10.json``). Either the objective prefers that split (a bias of
 the loss, which no optimiser would fix) or the optimiser stops short of the truth. This script
-evaluates ``fhnn train``'s own validation loss — the same trainer, windows and weighting — at the
-trained run's model and at the simulator's true equations (:meth:`fhnn.data.dataset.Dataset.equations`
-in place of the model's, flow and coefficient laws exact), on the same imported data.
+evaluates ``fhnn train``'s own loss — the same trainer, windows and weighting — on every training
+window and on the validation windows, at the trained run's model, at the simulator's true
+equations (:meth:`fhnn.data.dataset.Dataset.equations` in place of the model's, flow and
+coefficient laws exact), and at each with the other's flow: the learned flow with the true
+coefficients, the true flow with the learned coefficients. Which of the two parts carries the gap
+between the run and the truth, and whether the learned coefficients or the true ones fit better
+under the learned flow (the flow the coefficients were trained with), says whether the split's
+miss is the optimiser's.
 
 Usage (after ``benchmarks/own_data.py --data-seed K`` has trained its run in ``--out``)::
 
@@ -24,10 +29,15 @@ from own_data import make_data, run_folder, with_truth
 from fhnn.data.dataset import read_dataset
 from fhnn.errors import DataFormatError
 from fhnn.training.run import Run
+from fhnn.training.trainer import data_loss, loss_terms
+
+#: The models scored: the trained run, the true equations, and each with the other's flow.
+MODELS = ("learned", "truth", "learned flow, true coefficients", "true flow, learned coefficients")
 
 
-def truth_loss(out: Path, seed: int) -> dict[str, float]:
-    """The validation losses ``{"learned": …, "truth": …}`` on data seed ``seed`` in ``out``."""
+def truth_loss(out: Path, seed: int) -> dict[str, dict[str, float]]:
+    """Per split ("train": every training window, "val": the trainer's validation windows), the
+    loss of each of :data:`MODELS` on data seed ``seed`` in ``out``."""
     folder = run_folder(out, seed, "defaults")
     if not (folder / "run.json").exists():
         raise DataFormatError(
@@ -39,8 +49,27 @@ def truth_loss(out: Path, seed: int) -> dict[str, float]:
     run = Run.load(folder)
     trainer = run.trainer(imported)
     learned = run.state.best_model
-    truth = eqx.tree_at(lambda m: m.eom, learned, scored.equations())
-    return {name: float(trainer.validate(m)["total"]) for name, m in (("learned", learned), ("truth", truth))}
+    true_eom = scored.equations()
+    models = dict(
+        zip(
+            MODELS,
+            (
+                learned,
+                eqx.tree_at(lambda m: m.eom, learned, true_eom),
+                eqx.tree_at(lambda m: m.eom.coefficients, learned, true_eom.coefficients),
+                eqx.tree_at(lambda m: m.eom.flow, learned, true_eom.flow),
+            ),
+            strict=True,
+        )
+    )
+    train = trainer.batch(trainer.train_pairs)  # every window the Adam batches are drawn from
+    terms = eqx.filter_jit(loss_terms)
+    return {
+        "train": {
+            k: float(data_loss(terms(m, train, trainer.scales), trainer.config)) for k, m in models.items()
+        },
+        "val": {k: float(trainer.validate(m)["total"]) for k, m in models.items()},
+    }
 
 
 def main() -> None:
@@ -50,12 +79,15 @@ def main() -> None:
     args = p.parse_args()
     for seed in (int(s) for s in args.data_seeds.split(",")):
         loss = truth_loss(args.out, seed)
-        gap = (loss["learned"] - loss["truth"]) / loss["truth"]
-        print(
-            f"data seed {seed}: validation loss of the trained run {loss['learned']:.7g}, "
-            f"of the true equations {loss['truth']:.7g} (the run's {gap:+.2e} relative): the objective "
-            + ("prefers the truth" if gap > 0 else "prefers the trained run")
-        )
+        for split, values in loss.items():
+            base = values["truth"]
+            print(
+                f"data seed {seed}, {'training' if split == 'train' else 'validation'} loss: "
+                + "; ".join(
+                    f"{name} {v:.7g}" + ("" if name == "truth" else f" ({(v - base) / base:+.2e})")
+                    for name, v in values.items()
+                )
+            )
 
 
 if __name__ == "__main__":
