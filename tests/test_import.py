@@ -53,7 +53,7 @@ from fhnn.evaluation.metrics import irregular_metrics, liu_weisberg, trajectory_
 from fhnn.evaluation.predict import Forecast, estimate_states, forecast, predict_tracks
 from fhnn.evaluation.recovery import RATIO_NAMES, coefficient_recovery, drag_ratios
 from fhnn.experiments.exports import write_coefficients_csv, write_flow_netcdf
-from fhnn.models.base import AbstractVectorField, start_error_weighted
+from fhnn.models.base import AbstractVectorField, start_error_weighted, start_error_weighted_by
 from fhnn.physics.actuation import actuation_force, forcing
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import rk4_step
@@ -351,6 +351,79 @@ def test_a_windows_start_errors_are_weighed_out_of_its_residuals(rng) -> None:
     drift = jnp.stack([0.3 + 2.0 * tau, -0.1 + 0.5 * tau], axis=-1)
     assert float(jnp.max(start_error_weighted(drift, t, jnp.full((B, 2), 1e8)))) < 1e-7
     assert float(jnp.min(start_error_weighted(drift, t, jnp.full((B, 2), 1e-12)))) > 1e-3
+
+
+def test_a_start_errors_drift_as_the_model_carries_it_is_weighed_out_too(rng) -> None:
+    B, W = 3, 6
+    t = jnp.asarray(np.cumsum(rng.uniform(0.03, 0.07, (B, W)), axis=1))
+    resid = jnp.asarray(rng.normal(size=(B, W - 1, 2)))
+    pv = rng.uniform(0.5, 5.0, B)
+    var4 = jnp.asarray(np.stack([np.ones(B), np.ones(B), pv, pv], axis=1))
+    # free flight written as a sensitivity to (x, y, vx, vy): the per-axis weighting's mean
+    tau = np.asarray(t[:, 1:] - t[:, :1])
+    free = np.zeros((B, W - 1, 2, 4))
+    for a in range(2):
+        free[:, :, a, a], free[:, :, a, 2 + a] = 1.0, tau
+    per_axis = start_error_weighted(resid, t, jnp.asarray(np.stack([np.ones(B), pv], axis=1)))
+    np.testing.assert_allclose(
+        start_error_weighted_by(resid, jnp.asarray(free), var4), np.mean(per_axis, axis=1), rtol=1e-10
+    )
+    # any sensitivity, coupling the axes: against the covariance formed and solved directly
+    jac = rng.normal(size=(B, W - 1, 2, 4))
+    got = np.asarray(start_error_weighted_by(resid, jnp.asarray(jac), var4))
+    for b in range(B):
+        j = jac[b].reshape(-1, 4)
+        cov = np.eye(2 * (W - 1)) + j @ np.diag(np.asarray(var4[b])) @ j.T
+        r = np.asarray(resid[b]).ravel()
+        assert got[b] == pytest.approx(r @ np.linalg.solve(cov, r) / (2 * (W - 1)), rel=1e-10)
+    # a residual that is the model's drift of a start error costs nothing when such errors are large
+    drift = jnp.asarray(np.einsum("bkai,bi->bka", jac, rng.normal(size=(B, 4))))
+    assert float(jnp.max(start_error_weighted_by(drift, jnp.asarray(jac), jnp.full((B, 4), 1e8)))) < 1e-6
+
+
+def test_the_model_drift_weighting_follows_the_models_own_start_sensitivity() -> None:
+    """``train.shoot_drift="model"``: for a body in still water with linear drag only, the
+    sensitivity of the positions to the start velocity is ``(1 − e^(−kτ))/k``, not ``τ``; a window
+    whose residual is exactly that drift of a velocity error costs (almost) nothing under the
+    model's weighting and a clear amount under free flight's."""
+    from fhnn.physics.body import CoefficientLaws, Constant
+    from fhnn.physics.flows import StillWater
+
+    eom = EquationsOfMotion(
+        flow=StillWater(),
+        coefficients=CoefficientLaws(Constant(0.0), Constant(0.0), Constant(0.0), Constant(5.0)),
+        mass=1.0,
+        rho=1000.0,
+        area=0.02,
+    )
+    model = _Truth(eom)
+    W, k = 40, 5.0  # the drag's rate c_l / M [1/s]: 0.2 s against windows of 2 s
+    t = jnp.linspace(0.0, 2.0, W)[None]
+    s0 = jnp.asarray([[0.0, 0.0, 0.1, -0.05]])
+    tau = t[0] - t[0, 0]
+    dv = np.array([3e-3, -2e-3])  # a start velocity error [m/s]: the observations drift by it
+    true = s0[0, :2] + s0[0, 2:] * ((1 - jnp.exp(-k * tau)) / k)[:, None]
+    obs = true + dv * np.asarray((1 - jnp.exp(-k * tau)) / k)[:, None]
+    states = jnp.concatenate([obs, jnp.zeros_like(obs)], axis=1)[None].at[0, 0].set(s0[0])
+    batch = {
+        "s": states,
+        "t": t,
+        "act": jnp.zeros((1, 2, 3, 3)),
+        "dforce": jnp.zeros((1, W, 2)),
+        "deriv": jnp.zeros((1, W, 4)),
+    }
+    scales = (jnp.ones(4), jnp.ones(4))
+    plain = float(model.loss_terms(batch, scales)["shoot"])  # unweighted: the mean square
+    assert plain > 1e-7
+    loss = {}
+    for drift, var in (("model", [1.0, 1.0, 1e8, 1e8]), ("free", [1.0, 1e8])):
+        cfg = TrainConfig(shoot=W, shoot_noise=(1e-3, 10.0), shoot_drift=drift)
+        assert cfg.start_variance(1)["start_var"].shape == (1, len(var))
+        loss[drift] = float(model.loss_terms({**batch, "start_var": jnp.asarray([var])}, scales)["shoot"])
+    # seen: 3.5e-8 and 0.031 of the mean square; free flight's τ·δv cannot take up the damped drift
+    assert loss["model"] < 1e-5 * plain and loss["free"] > 1e-2 * plain, (loss, plain)
+    with pytest.raises(ConfigError, match="shoot_drift must be one of free, model, got 'nope'"):
+        TrainConfig(shoot_drift="nope")
 
 
 def test_estimated_velocities_train_with_their_start_errors_weighed(fine, imported) -> None:

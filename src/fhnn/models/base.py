@@ -76,6 +76,31 @@ def start_error_weighted(resid: Array, t: Array, start_var: Array) -> Array:
     return (jnp.sum(resid**2, axis=1) - explained) / resid.shape[1]
 
 
+def start_error_weighted_by(resid: Array, jac: Array, start_var: Array) -> Array:
+    """:func:`start_error_weighted` with the model's own sensitivity of the window's predicted
+    positions to its start state in place of the free flight ``J = [1, τ]``: the drift of a start
+    error as the model carries it (damped by the drag, turned by the flow), both axes together.
+
+    Args:
+        resid: ``(B, W−1, 2)`` residuals at samples ``1 … W−1`` [m, or any common scale of the
+            position noise's units].
+        jac: ``(B, W−1, 2, 4)`` the predicted positions' derivatives with respect to the start
+            state ``(x, y, vx, vy)`` [1, s].
+        start_var: ``(B, 4)`` variances of the start state's errors relative to the position
+            noise (``1, 1, σ_v²/σ_x², σ_v²/σ_x²``); all > 0.
+
+    Returns:
+        ``(B,)``: the weighted square per window over ``2 (W − 1)`` (zero start errors: the mean
+        squared residual).
+    """
+    flat_r = resid.reshape(resid.shape[0], -1)  # (B, 2(W-1))
+    flat_j = jac.reshape(jac.shape[0], -1, jac.shape[-1])  # (B, 2(W-1), 4)
+    info = jnp.einsum("bki,bkj->bij", flat_j, flat_j) + jax.vmap(jnp.diag)(1.0 / start_var)
+    u = jnp.einsum("bki,bk->bi", flat_j, flat_r)
+    explained = jnp.einsum("bi,bi->b", u, jnp.linalg.solve(info, u[..., None])[..., 0])
+    return (jnp.sum(flat_r**2, axis=1) - explained) / flat_r.shape[1]
+
+
 @dataclass(frozen=True)
 class Rollout:
     """Predicted states ``(N, T, 4)`` at times ``t`` ``(T,)`` (or each trajectory's own, ``(N,
@@ -186,14 +211,23 @@ class AbstractVectorField(AbstractModel):
         deriv_scale, step_scale = scales
         width = batch["s"].shape[1]
 
-        def one(s: Array, t: Array, a: Array, r: Array) -> tuple[Array, Array]:
+        # the model's own start sensitivity where the batch's start errors are given per state
+        # component (start_error_weighted_by), the free flight's where per axis
+        sensitive = width > 2 and batch.get("start_var") is not None and batch["start_var"].shape[-1] == 4
+
+        def one(s: Array, t: Array, a: Array, r: Array) -> tuple[Array, Array, Array | None]:
             f = lambda x, tt: self(x, tt, forcing(a, tt, t, r))  # noqa: E731
             d0 = f(s[0], t[0])
             if width == 2:
-                return d0, rk4_step(f, s[0], t[0], t[1] - t[0], k1=d0)[None]
-            return d0, rk4_solve(f, s[0], t)[1:]
+                return d0, rk4_step(f, s[0], t[0], t[1] - t[0], k1=d0)[None], None
+            path = rk4_solve(f, s[0], t)[1:]
+            if not sensitive:
+                return d0, path, None
+            # held fixed in the gradient: the weights of generalised least squares, not a term
+            jac = jax.jacfwd(lambda x: rk4_solve(f, x, t)[1:, :2])(jax.lax.stop_gradient(s[0]))
+            return d0, path, jax.lax.stop_gradient(jac)
 
-        pred_d, pred_path = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
+        pred_d, pred_path, start_jac = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
         weight = batch.get("weight")
         if weight is None:
             mean = jnp.mean
@@ -208,7 +242,11 @@ class AbstractVectorField(AbstractModel):
         }
         if width > 2:
             resid = (pred_path[..., :2] - batch["s"][:, 1:, :2]) / step_scale[:2]
-            if "start_var" in batch:
+            if sensitive:  # in metres, then in the scaled units on average over the axes
+                metres = resid * step_scale[:2]
+                resid_sq = start_error_weighted_by(metres, start_jac, batch["start_var"])
+                resid_sq = resid_sq / jnp.mean(step_scale[:2] ** 2)
+            elif "start_var" in batch:
                 resid_sq = start_error_weighted(resid, batch["t"], batch["start_var"])
             else:
                 resid_sq = resid**2

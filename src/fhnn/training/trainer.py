@@ -58,6 +58,10 @@ from fhnn.models.base import AbstractModel
 Array = jax.Array
 
 
+#: The values of ``TrainConfig.shoot_drift``.
+SHOOT_DRIFTS = ("free", "model")
+
+
 @frozen_config
 class TrainConfig(Config):
     """Optimisation settings.
@@ -108,6 +112,16 @@ class TrainConfig(Config):
             window) and ``P = diag(1, σ_v²/σ_x²)``: the model gains nothing by damping a start
             error it cannot see, which otherwise biases the drag up where relative speeds are
             small (the error is noise the data's drag signal must outweigh there).
+        shoot_drift: how a start error drifts in that weighting: ``"free"``, in free flight
+            (``J = [1, t]`` per axis); ``"model"``, as the model itself carries it — ``J`` the
+            window's predicted positions' derivatives with respect to its start state (forward
+            mode, held fixed in the gradient as generalised least squares holds its weights;
+            :func:`fhnn.models.base.start_error_weighted_by`), damped by the drag and turned by
+            the flow, which free flight overstates on windows long against the drag's time
+            ``(M + m_a)/c`` (about 6 s on issue 14's data). Measured there (``benchmarks/own_data.py
+            --set train.shoot_drift=model``, data seeds 0 / 1): the validation forecast at 5 s
+            2.24 → 2.13 / 2.30 → 2.27 mm, ``c_l`` 2.2 → 2.8 / 8.1 → 8.5 % off, a step about twice
+            as dear; not the default.
         warmup_accept: what the warm-up's validation loss decides (0: nothing — Adam always
             follows the warm-up). Above 0, a warm-up whose validation loss is at or below it is
             kept and the Adam phase is skipped (the polish starts from the warm-up: the linear
@@ -160,6 +174,7 @@ class TrainConfig(Config):
     lbfgs_stride: int = 1
     lr_c_l: float = 1.0
     shoot_noise: tuple[float, float] = (0.0, 0.0)
+    shoot_drift: str = "free"
     bootstrap: bool = False
 
     def validate(self) -> None:
@@ -173,6 +188,10 @@ class TrainConfig(Config):
             raise ConfigError("training: shoot must be 0 (off) or at least 2 samples, got 1")
         if any(not 0 < b < 1 for b in self.lr_boundaries):
             raise ConfigError(f"training: lr_boundaries must lie in (0, 1), got {self.lr_boundaries}")
+        if self.shoot_drift not in SHOOT_DRIFTS:
+            raise ConfigError(
+                f"training: shoot_drift must be one of {', '.join(SHOOT_DRIFTS)}, got {self.shoot_drift!r}"
+            )
         sx, sv = self.shoot_noise
         if not (np.isfinite(sx) and np.isfinite(sv) and sx >= 0 and sv >= 0) or (sv > 0 and sx == 0):
             raise ConfigError(
@@ -181,14 +200,18 @@ class TrainConfig(Config):
             )
 
     def start_variance(self, n: int) -> dict[str, Array]:
-        """The batch field ``"start_var"`` of ``n`` windows, shape ``(n, 2)``: the variances of a
-        window's start position and velocity errors relative to the position noise (``1`` and
-        ``σ_v²/σ_x²`` [1/s²], see ``shoot_noise``); empty where the multi-step loss is off or no
-        noise is given."""
+        """The batch field ``"start_var"`` of ``n`` windows: the variances of a window's start
+        position and velocity errors relative to the position noise (``1`` and ``σ_v²/σ_x²``
+        [1/s²], see ``shoot_noise``), shape ``(n, 2)`` (per axis, ``shoot_drift="free"``) or
+        ``(n, 4)`` (per start-state component ``x, y, vx, vy``, ``"model"``); empty where the
+        multi-step loss is off or no noise is given."""
         sx, sv = self.shoot_noise
         if self.shoot < 3 or sx == 0:
             return {}
-        return {"start_var": jnp.broadcast_to(jnp.asarray([1.0, (sv / sx) ** 2]), (n, 2))}
+        var = [1.0, (sv / sx) ** 2]
+        if self.shoot_drift == "model":
+            var = [var[0], var[0], var[1], var[1]]
+        return {"start_var": jnp.broadcast_to(jnp.asarray(var), (n, len(var)))}
 
     @property
     def first_start(self) -> int:
