@@ -13,14 +13,19 @@ between the run and the truth, and whether the learned coefficients or the true 
 under the learned flow (the flow the coefficients were trained with), says whether the split's
 miss is the optimiser's.
 
+``--window W`` and ``--drift free|model`` score on other windows than the run trained on
+(``train.shoot=W``, ``train.shoot_drift``): where the truth's loss stands on longer windows.
+
 Usage (after ``benchmarks/own_data.py --data-seed K`` has trained its run in ``--out``)::
 
     python benchmarks/own_data_truth_loss.py [--out benchmarks/_own_data] [--data-seeds 0,1]
+        [--window W] [--drift free|model]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import equinox as eqx
@@ -29,15 +34,18 @@ from own_data import make_data, run_folder, with_truth
 from fhnn.data.dataset import read_dataset
 from fhnn.errors import DataFormatError
 from fhnn.training.run import Run
-from fhnn.training.trainer import data_loss, loss_terms
+from fhnn.training.trainer import Trainer, data_loss, loss_terms
 
 #: The models scored: the trained run, the true equations, and each with the other's flow.
 MODELS = ("learned", "truth", "learned flow, true coefficients", "true flow, learned coefficients")
 
 
-def truth_loss(out: Path, seed: int) -> dict[str, dict[str, float]]:
+def truth_loss(
+    out: Path, seed: int, window: int = 0, drift: str | None = None
+) -> dict[str, dict[str, float]]:
     """Per split ("train": every training window, "val": the trainer's validation windows), the
-    loss of each of :data:`MODELS` on data seed ``seed`` in ``out``."""
+    loss of each of :data:`MODELS` on data seed ``seed`` in ``out``; on windows of ``window``
+    samples (0: the run's own) with ``train.shoot_drift=drift`` (``None``: the run's own)."""
     folder = run_folder(out, seed, "defaults")
     if not (folder / "run.json").exists():
         raise DataFormatError(
@@ -48,6 +56,10 @@ def truth_loss(out: Path, seed: int) -> dict[str, dict[str, float]]:
     scored = with_truth(imported, fine)
     run = Run.load(folder)
     trainer = run.trainer(imported)
+    if window or drift:
+        cfg = trainer.config
+        cfg = dataclasses.replace(cfg, shoot=window or cfg.shoot, shoot_drift=drift or cfg.shoot_drift)
+        trainer = Trainer(cfg, imported.train, imported.val, window=cfg.shoot)
     learned = run.state.best_model
     true_eom = scored.equations()
     models = dict(
@@ -76,13 +88,23 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("benchmarks/_own_data"))
     p.add_argument("--data-seeds", default="0,1")
+    p.add_argument("--window", type=int, default=0, help="windows of this many samples (0: the run's)")
+    p.add_argument("--drift", choices=("free", "model"), default=None, help="train.shoot_drift (the run's)")
     args = p.parse_args()
+    if args.window < 0 or args.window in (1, 2):
+        raise SystemExit("--window must be 0 (the run's) or at least 3 samples")
     for seed in (int(s) for s in args.data_seeds.split(",")):
-        loss = truth_loss(args.out, seed)
+        loss = truth_loss(args.out, seed, args.window, args.drift)
         for split, values in loss.items():
             base = values["truth"]
             print(
-                f"data seed {seed}, {'training' if split == 'train' else 'validation'} loss: "
+                f"data seed {seed}, {'training' if split == 'train' else 'validation'} loss"
+                + (
+                    f" (windows of {args.window or 'the run'}, drift {args.drift or 'the run'})"
+                    if args.window or args.drift
+                    else ""
+                )
+                + ": "
                 + "; ".join(
                     f"{name} {v:.7g}" + ("" if name == "truth" else f" ({(v - base) / base:+.2e})")
                     for name, v in values.items()

@@ -1,0 +1,165 @@
+"""Does training on longer windows settle the drag split? Continuations of ``own_data.py``'s run.
+
+``fhnn train`` fits issue 14's positions on windows of 40 samples (2 s), which hold little on the
+split between ``c_l`` and ``c_q`` (``benchmarks/own_data_bound.py --window``: ``c_l``'s bound is
+several percent there, under 1 % on windows of 160). This script starts from the defaults' trained
+run (``benchmarks/own_data.py --data-seed K`` in ``--out``) and goes on training it on longer
+windows, each continuation on its own:
+
+- ``adam:W:B:STEPS:DRIFT`` — Adam on windows of ``W`` samples in batches of ``B`` for ``STEPS``
+  steps at ``--lr`` (the run's own schedule shape, ``c_l`` at its 10× rate, no flow penalty), the
+  start errors weighed with ``train.shoot_drift=DRIFT`` (``free`` or ``model``);
+- ``lbfgs:ITERATIONS:PARTS:W:DRIFT`` — L-BFGS (memory 20), full batch, on all parameters
+  (``PARTS`` ``all``) or the coefficients only (``coef``), on windows of ``W`` samples starting
+  every ``W/4`` samples (``W`` 0: every training track as one window from its first sample, as
+  long as the shortest track), the start errors weighed with ``train.shoot_drift=DRIFT``.
+
+For each it prints the 2 s windows' training and validation loss (``fhnn train``'s own objective,
+on every training window and on the validation windows), the recovery against the simulator's
+truth (masses, ``c_q``, ``c_l`` mean relative error; ``c_q``'s largest error per σ band) and the
+flow's relative L2 error, before and after.
+
+Usage::
+
+    python benchmarks/own_data_longer_windows.py [--out benchmarks/_own_data] [--data-seed 0]
+        [--lr 1e-3] RUN [RUN ...]
+
+e.g. ``adam:80:16:2000:free adam:160:8:2000:model lbfgs:100:all:0:free``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import numpy as np
+import optax
+from jax.flatten_util import ravel_pytree
+from own_data import make_data, recovery_scores, run_folder, with_truth
+
+from fhnn.data.dataset import read_dataset
+from fhnn.errors import DataFormatError
+from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+from fhnn.training.run import Run
+from fhnn.training.trainer import (
+    QUASI_NEWTON_FIELDS,
+    Trainer,
+    data_loss,
+    loss_terms,
+    quasi_newton_step,
+    strong_types,
+)
+
+
+def score(model, base: Trainer, train: dict, scored) -> str:
+    """One line: ``model``'s 2 s training and validation loss and its recovery."""
+    terms = eqx.filter_jit(loss_terms)
+    tr = float(data_loss(terms(model, train, base.scales), base.config))
+    va = base.validate(model)["total"]
+    rec = recovery_scores(coefficient_recovery(model.coefficients, scored))
+    c = rec["coefficients_mean_rel"]
+    bands = " ".join(f"{b['c_q']:.1%}" for b in rec["c_q_by_sigma"])
+    flow = flow_recovery(model.flow, scored)["rel_l2"]
+    return (
+        f"2 s loss train {tr:.9g} val {va:.9g} | m_ax {c['m_ax']:.2%} m_ay {c['m_ay']:.2%} "
+        f"c_q {c['c_q']:.2%} c_l {c['c_l']:.2%} flow {flow:.2%} | c_q per σ band {bands}"
+    )
+
+
+def adam(model, imported, base: Trainer, window: int, batch: int, steps: int, drift: str, lr: float):
+    """``model`` after ``steps`` Adam steps on windows of ``window`` samples (its last iterate)."""
+    cfg = dataclasses.replace(
+        base.config,
+        shoot=window,
+        batch_size=batch,
+        steps=steps,
+        lr=lr,
+        lambda_flow=0.0,
+        val_every=max(100, steps // 5),
+        shoot_drift=drift,
+    )
+    trainer = Trainer(cfg, imported.train, imported.val, window=window)
+
+    def tell(_, record: dict) -> None:
+        print(f"    step {record['step']}: validation loss ({window} samples) {record['val_total']:.6g}")
+
+    return trainer.run(trainer.init(model), callback=tell).model
+
+
+def lbfgs(model, imported, base: Trainer, iterations: int, parts: str, window: int, drift: str):
+    """``model`` after ``iterations`` L-BFGS steps on windows of ``window`` samples every
+    ``window // 4`` (0: the whole training tracks)."""
+    cfg = base.config
+    whole = window == 0
+    if whole:
+        window = int(imported.train.sample_counts.min()) - cfg.first_start
+    cfg = dataclasses.replace(cfg, shoot=window, shoot_drift=drift)
+    trainer = Trainer(cfg, imported.train, imported.val, window=window)
+    offset = trainer.train_pairs.start - cfg.first_start
+    pool = np.flatnonzero(offset == 0 if whole else offset % max(1, window // 4) == 0)
+    batch = trainer.batch(trainer.train_pairs.subset(pool))
+    if parts == "coef":
+        free = jax.tree.map(lambda _: False, model)
+        free = eqx.tree_at(
+            lambda m: m.eom.coefficients, free, replace=jax.tree.map(eqx.is_array, model.eom.coefficients)
+        )
+    else:
+        free = eqx.is_array
+    params, static = eqx.partition(model, free)
+    flat, unravel = ravel_pytree(params)
+    qn = dataclasses.replace(cfg.only(QUASI_NEWTON_FIELDS), lbfgs_memory=20)
+    opt_state = strong_types(optax.lbfgs(memory_size=20).init(flat))
+    for k in range(iterations):
+        flat, opt_state, value = quasi_newton_step(flat, opt_state, params, static, batch, trainer.scales, qn)
+        if (k + 1) % max(1, iterations // 5) == 0:
+            what = f"{len(pool)} windows of {window} samples"
+            print(f"    iteration {k + 1}: objective ({what}) {float(value):.6g}")
+    return eqx.combine(unravel(flat), static)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", type=Path, default=Path("benchmarks/_own_data"))
+    p.add_argument("--data-seed", type=int, default=0)
+    p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("runs", nargs="+", help="adam:W:B:STEPS:DRIFT or lbfgs:ITERATIONS:PARTS:W:DRIFT")
+    args = p.parse_args()
+    for spec in args.runs:  # checked before anything runs
+        kind, *rest = spec.split(":")
+        numbers = rest[:3] if kind == "adam" else rest[:1] + rest[2:3]
+        ok = len(rest) == 4 and (kind == "adam" or (kind == "lbfgs" and rest[1] in ("all", "coef")))
+        if not ok or rest[-1] not in ("free", "model") or not all(x.isdigit() for x in numbers):
+            raise SystemExit(
+                f"bad run {spec!r}: give adam:W:B:STEPS:free|model or lbfgs:ITERATIONS:all|coef:W:free|model"
+            )
+    folder = run_folder(args.out, args.data_seed, "defaults")
+    if not (folder / "run.json").exists():
+        raise DataFormatError(
+            f"{folder}: no trained run; run benchmarks/own_data.py --data-seed {args.data_seed} first"
+        )
+    fine, _, _, data, _ = make_data(args.out, args.data_seed)
+    imported = read_dataset(data)
+    scored = with_truth(imported, fine)
+    run = Run.load(folder)
+    base = run.trainer(imported)
+    train = base.batch(base.train_pairs)
+    start = run.state.best_model
+    print(f"data seed {args.data_seed}, the defaults' run: {score(start, base, train, scored)}")
+    for spec in args.runs:
+        kind, *rest = spec.split(":")
+        began = time.perf_counter()
+        print(f"{spec}:")
+        if kind == "adam":
+            w, b, n = (int(x) for x in rest[:3])
+            model = adam(start, imported, base, w, b, n, rest[3], args.lr)
+        else:
+            model = lbfgs(start, imported, base, int(rest[0]), rest[1], int(rest[2]), rest[3])
+        print(f"  after ({time.perf_counter() - began:.0f} s): {score(model, base, train, scored)}")
+
+
+if __name__ == "__main__":
+    main()
