@@ -51,6 +51,7 @@ from fhnn.cli.app import main as fhnn
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.table import observe, write_table
+from fhnn.errors import DataFormatError
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.physics.scenarios import get_scenario
 from fhnn.training.run import Run
@@ -148,6 +149,20 @@ def run_folder(out: Path, data_seed: int, tag: str) -> Path:
     """The folder of the single run trained on data seed ``data_seed`` with the settings ``tag``
     (``"defaults"``: ``fhnn train``'s own) in ``out``."""
     return out / f"run_seed{data_seed}_{tag}"
+
+
+def trained_run(out: Path, data_seed: int) -> tuple[Dataset, Dataset, Run]:
+    """The imported data of data seed ``data_seed`` in ``out`` (imported again, as ``--reuse-run``
+    does), the same with the simulator's truth (:func:`with_truth`) and the defaults' single run
+    trained on it; a :class:`~fhnn.errors.DataFormatError` where that run is not there."""
+    folder = run_folder(out, data_seed, "defaults")
+    if not (folder / "run.json").exists():
+        raise DataFormatError(
+            f"{folder}: no trained run; run benchmarks/own_data.py --data-seed {data_seed} first"
+        )
+    fine, _, _, data, _ = make_data(out, data_seed)
+    imported = read_dataset(data)
+    return imported, with_truth(imported, fine), Run.load(folder)
 
 
 def with_truth(imported: Dataset, truth: Dataset) -> Dataset:
@@ -458,7 +473,6 @@ def ensemble_scores(
     finished, its training time stands (nothing is trained now)."""
     import pyarrow.csv as pacsv
 
-    from fhnn.errors import DataFormatError
     from fhnn.experiments.exports import ensemble_intervals
     from fhnn.training.ensemble import is_ensemble, member_folders
 

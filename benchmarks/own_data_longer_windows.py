@@ -39,12 +39,9 @@ import jax
 import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
-from own_data import make_data, recovery_scores, run_folder, with_truth
+from own_data import recovery_scores, trained_run
 
-from fhnn.data.dataset import read_dataset
-from fhnn.errors import DataFormatError
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
-from fhnn.training.run import Run
 from fhnn.training.trainer import (
     QUASI_NEWTON_FIELDS,
     Trainer,
@@ -54,11 +51,13 @@ from fhnn.training.trainer import (
     strong_types,
 )
 
+#: ``loss_terms`` compiled once for every model the script scores.
+_terms = eqx.filter_jit(loss_terms)
+
 
 def score(model, base: Trainer, train: dict, scored) -> str:
     """One line: ``model``'s 2 s training and validation loss and its recovery."""
-    terms = eqx.filter_jit(loss_terms)
-    tr = float(data_loss(terms(model, train, base.scales), base.config))
+    tr = float(data_loss(_terms(model, train, base.scales), base.config))
     va = base.validate(model)["total"]
     rec = recovery_scores(coefficient_recovery(model.coefficients, scored))
     c = rec["coefficients_mean_rel"]
@@ -136,15 +135,7 @@ def main() -> None:
             raise SystemExit(
                 f"bad run {spec!r}: give adam:W:B:STEPS:free|model or lbfgs:ITERATIONS:all|coef:W:free|model"
             )
-    folder = run_folder(args.out, args.data_seed, "defaults")
-    if not (folder / "run.json").exists():
-        raise DataFormatError(
-            f"{folder}: no trained run; run benchmarks/own_data.py --data-seed {args.data_seed} first"
-        )
-    fine, _, _, data, _ = make_data(args.out, args.data_seed)
-    imported = read_dataset(data)
-    scored = with_truth(imported, fine)
-    run = Run.load(folder)
+    imported, scored, run = trained_run(args.out, args.data_seed)
     base = run.trainer(imported)
     train = base.batch(base.train_pairs)
     start = run.state.best_model

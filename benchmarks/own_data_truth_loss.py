@@ -29,12 +29,12 @@ import dataclasses
 from pathlib import Path
 
 import equinox as eqx
-from own_data import make_data, run_folder, with_truth
+from own_data import trained_run
 
-from fhnn.data.dataset import read_dataset
-from fhnn.errors import DataFormatError
-from fhnn.training.run import Run
 from fhnn.training.trainer import Trainer, data_loss, loss_terms
+
+#: ``loss_terms`` compiled once for every model and window set the script scores.
+_terms = eqx.filter_jit(loss_terms)
 
 #: The models scored: the trained run, the true equations, and each with the other's flow.
 MODELS = ("learned", "truth", "learned flow, true coefficients", "true flow, learned coefficients")
@@ -46,15 +46,7 @@ def truth_loss(
     """Per split ("train": every training window, "val": the trainer's validation windows), the
     loss of each of :data:`MODELS` on data seed ``seed`` in ``out``; on windows of ``window``
     samples (0: the run's own) with ``train.shoot_drift=drift`` (``None``: the run's own)."""
-    folder = run_folder(out, seed, "defaults")
-    if not (folder / "run.json").exists():
-        raise DataFormatError(
-            f"{folder}: no trained run; run benchmarks/own_data.py --data-seed {seed} first"
-        )
-    fine, _, _, data, _ = make_data(out, seed)  # imported again, as own_data.py --reuse-run does
-    imported = read_dataset(data)
-    scored = with_truth(imported, fine)
-    run = Run.load(folder)
+    imported, scored, run = trained_run(out, seed)
     trainer = run.trainer(imported)
     if window or drift:
         cfg = trainer.config
@@ -75,10 +67,9 @@ def truth_loss(
         )
     )
     train = trainer.batch(trainer.train_pairs)  # every window the Adam batches are drawn from
-    terms = eqx.filter_jit(loss_terms)
     return {
         "train": {
-            k: float(data_loss(terms(m, train, trainer.scales), trainer.config)) for k, m in models.items()
+            k: float(data_loss(_terms(m, train, trainer.scales), trainer.config)) for k, m in models.items()
         },
         "val": {k: float(trainer.validate(m)["total"]) for k, m in models.items()},
     }

@@ -241,9 +241,9 @@ class AbstractVectorField(AbstractModel):
             "step": mean(((pred_path[:, 0] - batch["s"][:, 1]) / step_scale) ** 2),
         }
         if width > 2:
-            resid = (pred_path[..., :2] - batch["s"][:, 1:, :2]) / step_scale[:2]
+            metres = pred_path[..., :2] - batch["s"][:, 1:, :2]
+            resid = metres / step_scale[:2]
             if sensitive:  # in metres, then in the scaled units on average over the axes
-                metres = resid * step_scale[:2]
                 resid_sq = start_error_weighted_by(metres, start_jac, batch["start_var"])
                 resid_sq = resid_sq / jnp.mean(step_scale[:2] ** 2)
             elif "start_var" in batch:
