@@ -19,7 +19,8 @@ windows, each continuation on its own:
   is the reduced objective's), and L-BFGS (memory 20) moves all the model's parameters,
   Jacobi-preconditioned by the diagonal of the Gauss–Newton matrix ``JᵀJ`` (16 Hutchinson
   probes); the objective is the mean square position residual per axis [m²], RK4 one step per
-  sample interval.
+  sample interval. ``tracks:ITERATIONS:C_L`` holds the linear drag at ``C_L`` [N·s/m] (a point of
+  its profile likelihood: everything else refitted with it).
 
 For each it prints the 2 s windows' training and validation loss (``fhnn train``'s own objective,
 on every training window and on the validation windows), the recovery against the simulator's
@@ -53,6 +54,7 @@ from own_data import recovery_scores, trained_run
 from own_data_truth_loss import track_misfit
 
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+from fhnn.models.fhnn import uncap
 from fhnn.physics.actuation import forcing
 from fhnn.physics.integrators import rk4_solve
 from fhnn.training.trainer import (
@@ -133,9 +135,10 @@ def lbfgs(model, imported, base: Trainer, iterations: int, parts: str, window: i
     return eqx.combine(unravel(flat), static)
 
 
-def tracks(model, imported, iterations: int):
+def tracks(model, imported, iterations: int, c_l: float | None = None):
     """``model`` after ``iterations`` L-BFGS steps on the whole training tracks, each track's
-    start state fitted alongside (see the module docstring)."""
+    start state fitted alongside (see the module docstring); ``c_l`` [N·s/m]: the linear drag held
+    at that value (``None``: fitted too)."""
     sp = imported.train
     t, obs = jnp.asarray(sp.times), jnp.asarray(sp.states[..., :2])
     mask, act, res = jnp.asarray(sp.mask), jnp.asarray(sp.actuation), jnp.asarray(sp.force_residual)
@@ -162,7 +165,14 @@ def tracks(model, imported, iterations: int):
 
         return jax.vmap(one)(z, t, act, res, mask, obs)
 
-    params, static = eqx.partition(model, eqx.is_array)
+    free = eqx.is_array
+    if c_l is not None:
+        coef = model.eom.coefficients
+        raw = uncap(np.asarray(c_l), np.asarray(coef.caps[3]), coef.cap_map)
+        model = eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, model, jnp.asarray(raw, dtype=float))
+        free = jax.tree.map(eqx.is_array, model)
+        free = eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, free, replace=False)
+    params, static = eqx.partition(model, free)
     theta, unravel = ravel_pytree(params)
     as_model = lambda th: eqx.combine(unravel(th), static)  # noqa: E731
     z = jnp.asarray(sp.states[:, 0])
@@ -209,19 +219,25 @@ def main() -> None:
     p.add_argument("--data-seed", type=int, default=0)
     p.add_argument("--lr", type=float, default=1e-3)
     p.add_argument(
-        "runs", nargs="+", help="adam:W:B:STEPS:DRIFT, lbfgs:ITERATIONS:PARTS:W:DRIFT or tracks:ITERATIONS"
+        "runs",
+        nargs="+",
+        help="adam:W:B:STEPS:DRIFT, lbfgs:ITERATIONS:PARTS:W:DRIFT or tracks:ITERATIONS[:C_L]",
     )
     args = p.parse_args()
     for spec in args.runs:  # checked before anything runs
         kind, *rest = spec.split(":")
-        if kind == "tracks" and len(rest) == 1 and rest[0].isdigit():
-            continue
+        if kind == "tracks" and len(rest) in (1, 2) and rest[0].isdigit():
+            try:
+                if len(rest) == 1 or float(rest[1]) > 0:
+                    continue
+            except ValueError:
+                pass
         numbers = rest[:3] if kind == "adam" else rest[:1] + rest[2:3]
         ok = len(rest) == 4 and (kind == "adam" or (kind == "lbfgs" and rest[1] in ("all", "coef")))
         if not ok or rest[-1] not in ("free", "model") or not all(x.isdigit() for x in numbers):
             raise SystemExit(
                 f"bad run {spec!r}: give adam:W:B:STEPS:free|model, "
-                "lbfgs:ITERATIONS:all|coef:W:free|model or tracks:ITERATIONS"
+                "lbfgs:ITERATIONS:all|coef:W:free|model or tracks:ITERATIONS[:C_L]"
             )
     imported, scored, run = trained_run(args.out, args.data_seed)
     base = run.trainer(imported)
@@ -238,7 +254,7 @@ def main() -> None:
         elif kind == "lbfgs":
             model = lbfgs(start, imported, base, int(rest[0]), rest[1], int(rest[2]), rest[3])
         else:
-            model = tracks(start, imported, int(rest[0]))
+            model = tracks(start, imported, int(rest[0]), float(rest[1]) if len(rest) > 1 else None)
         print(f"  after ({time.perf_counter() - began:.0f} s): {score(model, base, train, scored)}")
         if kind == "tracks":
             true_eom = scored.equations()
