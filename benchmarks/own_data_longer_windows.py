@@ -51,7 +51,7 @@ import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
 from own_data import recovery_scores, trained_run
-from own_data_truth_loss import track_misfit
+from own_data_truth_loss import scored_models, track_misfit
 
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.models.fhnn import uncap
@@ -144,21 +144,19 @@ def tracks(model, imported, iterations: int, c_l: float | None = None):
     mask, act, res = jnp.asarray(sp.mask), jnp.asarray(sp.actuation), jnp.asarray(sp.force_residual)
     n = 2 * float(mask.sum())
 
-    def resid(m, z):
-        def one(s0, tt, aa, rr, mk, ob):
-            f = lambda x, ti: m(x, ti, forcing(aa, ti, tt, rr))  # noqa: E731
-            return jnp.where(mk[:, None], rk4_solve(f, s0, tt)[:, :2] - ob, 0.0)
+    def track_resid(m, s0, tt, aa, rr, mk, ob):
+        """One track's masked position residuals ``(T, 2)`` [m] from start state ``s0``."""
+        f = lambda x, ti: m(x, ti, forcing(aa, ti, tt, rr))  # noqa: E731
+        return jnp.where(mk[:, None], rk4_solve(f, s0, tt)[:, :2] - ob, 0.0)
 
-        return jax.vmap(one)(z, t, act, res, mask, obs)
+    def resid(m, z):
+        return jax.vmap(lambda s0, *track: track_resid(m, s0, *track))(z, t, act, res, mask, obs)
 
     def gauss_newton(m, z):
         """One Gauss–Newton step on every track's start state."""
 
-        def one(s0, tt, aa, rr, mk, ob):
-            def r(s):
-                f = lambda x, ti: m(x, ti, forcing(aa, ti, tt, rr))  # noqa: E731
-                return jnp.where(mk[:, None], rk4_solve(f, s, tt)[:, :2] - ob, 0.0).ravel()
-
+        def one(s0, *track):
+            r = lambda s: track_resid(m, s, *track).ravel()  # noqa: E731
             j = jax.jacfwd(r)(s0)
             h = j.T @ j
             return s0 - jnp.linalg.solve(h + 1e-9 * jnp.trace(h) * jnp.eye(4), j.T @ r(s0))
@@ -257,14 +255,12 @@ def main() -> None:
             model = tracks(start, imported, int(rest[0]), float(rest[1]) if len(rest) > 1 else None)
         print(f"  after ({time.perf_counter() - began:.0f} s): {score(model, base, train, scored)}")
         if kind == "tracks":
-            true_eom = scored.equations()
+            mixes = scored_models(model, scored.equations())
             misfits = {
                 "before": start,
                 "after": model,
-                "its flow, true coefficients": eqx.tree_at(
-                    lambda m: m.eom.coefficients, model, true_eom.coefficients
-                ),
-                "truth": eqx.tree_at(lambda m: m.eom, model, true_eom),
+                "its flow, true coefficients": mixes["learned flow, true coefficients"],
+                "truth": mixes["truth"],
             }
             print(
                 "  whole-track misfit per axis (training tracks, start states fitted): "
