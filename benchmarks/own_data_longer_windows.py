@@ -21,6 +21,14 @@ windows, each continuation on its own:
   probes); the objective is the mean square position residual per axis [m²], RK4 one step per
   sample interval. ``tracks:ITERATIONS:C_L`` holds the linear drag at ``C_L`` [N·s/m] (a point of
   its profile likelihood: everything else refitted with it).
+- ``known-flow:ITERATIONS:FROM[:C_L]`` — the same whole-track fit with the simulator's true flow
+  in the model's place and held: only the coefficients move (``C_L`` as above). ``FROM`` is where
+  the coefficients start: ``run`` the defaults' run's, ``truth`` the coefficient net regressed onto
+  the true laws at the visited (r, σ) points (raw outputs, 4,000 Adam steps) with ``c_l`` the true
+  value. With the flow's error out of the way, what is left is the likelihood along the drag split.
+- ``known-flow-lm:ITERATIONS:FROM`` — the same, fitted by the library's whole-track
+  Levenberg–Marquardt (:class:`fhnn.training.tracks.TrackFit`, ``fhnn train``'s
+  ``train.track_steps`` phase) on the coefficient net's output layer and ``c_l``.
 
 For each it prints the 2 s windows' training and validation loss (``fhnn train``'s own objective,
 on every training window and on the validation windows), the recovery against the simulator's
@@ -32,9 +40,10 @@ Usage::
     python benchmarks/own_data_longer_windows.py [--out benchmarks/_own_data] [--data-seed 0]
         [--lr 1e-3] RUN [RUN ...]
 
-e.g. ``adam:80:16:2000:free adam:160:8:2000:model lbfgs:100:all:0:free tracks:200``. After a
-``tracks`` run it also prints the whole-track misfit (``own_data_truth_loss.py --tracks``) of the
-continued model, of its flow with the true coefficients and of the truth.
+e.g. ``adam:80:16:2000:free adam:160:8:2000:model lbfgs:100:all:0:free tracks:200
+known-flow:100:truth:3.0``. After a ``tracks`` or ``known-flow`` run it also prints the whole-track
+misfit (``own_data_truth_loss.py --tracks``) of the start, of the continued model, of its flow with
+the true coefficients and of the truth.
 """
 
 from __future__ import annotations
@@ -53,10 +62,11 @@ from jax.flatten_util import ravel_pytree
 from own_data import recovery_scores, trained_run
 from own_data_truth_loss import scored_models, track_misfit
 
-from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
+from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery, visited_r_sigma
 from fhnn.models.fhnn import uncap
 from fhnn.physics.actuation import forcing
 from fhnn.physics.integrators import rk4_solve
+from fhnn.training.tracks import TrackFit
 from fhnn.training.trainer import (
     QUASI_NEWTON_FIELDS,
     Trainer,
@@ -104,6 +114,16 @@ def adam(model, imported, base: Trainer, window: int, batch: int, steps: int, dr
     return trainer.run(trainer.init(model), callback=tell).model
 
 
+def _free(model, parts: str):
+    """The filter of ``model``'s leaves an optimiser moves: every array (``parts`` ``all``) or the
+    coefficients' only (``coef``)."""
+    free = jax.tree.map(eqx.is_array, model)
+    if parts == "all":
+        return free
+    fixed = jax.tree.map(lambda _: False, model)
+    return eqx.tree_at(lambda m: m.eom.coefficients, fixed, replace=free.eom.coefficients)
+
+
 def lbfgs(model, imported, base: Trainer, iterations: int, parts: str, window: int, drift: str):
     """``model`` after ``iterations`` L-BFGS steps on windows of ``window`` samples every
     ``window // 4`` (0: the whole training tracks)."""
@@ -116,14 +136,7 @@ def lbfgs(model, imported, base: Trainer, iterations: int, parts: str, window: i
     offset = trainer.train_pairs.start - cfg.first_start
     pool = np.flatnonzero(offset == 0 if whole else offset % max(1, window // 4) == 0)
     batch = trainer.batch(trainer.train_pairs.subset(pool))
-    if parts == "coef":
-        free = jax.tree.map(lambda _: False, model)
-        free = eqx.tree_at(
-            lambda m: m.eom.coefficients, free, replace=jax.tree.map(eqx.is_array, model.eom.coefficients)
-        )
-    else:
-        free = eqx.is_array
-    params, static = eqx.partition(model, free)
+    params, static = eqx.partition(model, _free(model, parts))
     flat, unravel = ravel_pytree(params)
     qn = dataclasses.replace(cfg.only(QUASI_NEWTON_FIELDS), lbfgs_memory=20)
     opt_state = strong_types(optax.lbfgs(memory_size=20).init(flat))
@@ -135,10 +148,11 @@ def lbfgs(model, imported, base: Trainer, iterations: int, parts: str, window: i
     return eqx.combine(unravel(flat), static)
 
 
-def tracks(model, imported, iterations: int, c_l: float | None = None):
+def tracks(model, imported, iterations: int, c_l: float | None = None, parts: str = "all"):
     """``model`` after ``iterations`` L-BFGS steps on the whole training tracks, each track's
     start state fitted alongside (see the module docstring); ``c_l`` [N·s/m]: the linear drag held
-    at that value (``None``: fitted too)."""
+    at that value (``None``: fitted too); ``parts``: ``all`` the model's parameters move, ``coef``
+    the coefficients' only (the flow held)."""
     sp = imported.train
     t, obs = jnp.asarray(sp.times), jnp.asarray(sp.states[..., :2])
     mask, act, res = jnp.asarray(sp.mask), jnp.asarray(sp.actuation), jnp.asarray(sp.force_residual)
@@ -163,12 +177,11 @@ def tracks(model, imported, iterations: int, c_l: float | None = None):
 
         return jax.vmap(one)(z, t, act, res, mask, obs)
 
-    free = eqx.is_array
+    free = _free(model, parts)
     if c_l is not None:
         coef = model.eom.coefficients
         raw = uncap(np.asarray(c_l), np.asarray(coef.caps[3]), coef.cap_map)
         model = eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, model, jnp.asarray(raw, dtype=float))
-        free = jax.tree.map(eqx.is_array, model)
         free = eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, free, replace=False)
     params, static = eqx.partition(model, free)
     theta, unravel = ravel_pytree(params)
@@ -211,6 +224,58 @@ def tracks(model, imported, iterations: int, c_l: float | None = None):
     return as_model(x / scale)
 
 
+def levenberg_marquardt(model, imported, iterations: int):
+    """``model`` after ``iterations`` of the library's whole-track Levenberg–Marquardt on the
+    training tracks, moving the coefficient net's output layer and ``c_l`` (the flow held)."""
+    free = jax.tree.map(lambda _: False, model)
+    for pick in (
+        lambda m: m.eom.coefficients.mlp.layers[-1].weight,
+        lambda m: m.eom.coefficients.mlp.layers[-1].bias,
+        lambda m: m.eom.coefficients.c_l_raw,
+    ):
+        free = eqx.tree_at(pick, free, replace=True)
+    fit = TrackFit(model, free, imported.train)
+    for k in range(iterations):
+        step = fit.step()
+        c_l = float(step.model.coefficients(jnp.asarray(1.0), jnp.asarray(0.1))[3])
+        if k == 0 or (k + 1) % max(1, iterations // 5) == 0 or not step.accepted:
+            print(
+                f"    iteration {k + 1}: mean square per axis on whole tracks {step.mean_square:.6g} m², "
+                f"c_l {c_l:.5f}"
+            )
+        if not step.accepted:
+            break
+    return fit.model
+
+
+def regressed_truth(model, scored):
+    """``model`` with the simulator's flow and its coefficient net fitted to the true coefficient
+    laws: raw outputs (before the caps) by least squares at the visited (r, σ) points, 4,000 Adam
+    steps; ``c_l`` set to the true constant."""
+    true_eom = scored.equations()
+    coef = model.eom.coefficients
+    points = jnp.asarray(visited_r_sigma(true_eom, scored))
+    truth = np.asarray(jax.vmap(lambda p: jnp.stack(true_eom.coefficients(p[0], p[1])))(points))
+    target = np.stack([uncap(truth[:, i], np.asarray(coef.caps[i]), coef.cap_map) for i in range(4)], 1)
+    inputs = points / jnp.stack([coef.r_scale, coef.sigma_scale])
+    opt = optax.adam(optax.cosine_decay_schedule(3e-3, 4000))
+
+    @eqx.filter_jit
+    def step(mlp, state):
+        loss = lambda m: jnp.mean((jax.vmap(m)(inputs)[:, :3] - target[:, :3]) ** 2)  # noqa: E731
+        grad = eqx.filter_grad(loss)(mlp)
+        update, state = opt.update(grad, state, eqx.filter(mlp, eqx.is_array))
+        return eqx.apply_updates(mlp, update), state
+
+    mlp = coef.mlp
+    state = opt.init(eqx.filter(mlp, eqx.is_array))
+    for _ in range(4000):
+        mlp, state = step(mlp, state)
+    model = eqx.tree_at(lambda m: m.eom.flow, model, true_eom.flow)
+    model = eqx.tree_at(lambda m: m.eom.coefficients.mlp, model, mlp)
+    return eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, model, jnp.asarray(target[0, 3]))
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("benchmarks/_own_data"))
@@ -219,11 +284,17 @@ def main() -> None:
     p.add_argument(
         "runs",
         nargs="+",
-        help="adam:W:B:STEPS:DRIFT, lbfgs:ITERATIONS:PARTS:W:DRIFT or tracks:ITERATIONS[:C_L]",
+        help="adam:W:B:STEPS:DRIFT, lbfgs:ITERATIONS:PARTS:W:DRIFT, tracks:ITERATIONS[:C_L] or "
+        "known-flow:ITERATIONS:run|truth[:C_L] or known-flow-lm:ITERATIONS:run|truth",
     )
     args = p.parse_args()
     for spec in args.runs:  # checked before anything runs
         kind, *rest = spec.split(":")
+        if kind == "known-flow-lm" and len(rest) == 2 and rest[0].isdigit() and rest[1] in ("run", "truth"):
+            continue
+        if kind == "known-flow" and len(rest) in (2, 3) and rest[1] in ("run", "truth"):
+            rest = rest[:1] + rest[2:]
+            kind = "tracks"
         if kind == "tracks" and len(rest) in (1, 2) and rest[0].isdigit():
             try:
                 if len(rest) == 1 or float(rest[1]) > 0:
@@ -235,7 +306,8 @@ def main() -> None:
         if not ok or rest[-1] not in ("free", "model") or not all(x.isdigit() for x in numbers):
             raise SystemExit(
                 f"bad run {spec!r}: give adam:W:B:STEPS:free|model, "
-                "lbfgs:ITERATIONS:all|coef:W:free|model or tracks:ITERATIONS[:C_L]"
+                "lbfgs:ITERATIONS:all|coef:W:free|model, tracks:ITERATIONS[:C_L] or "
+                "known-flow[-lm]:ITERATIONS:run|truth[:C_L]"
             )
     imported, scored, run = trained_run(args.out, args.data_seed)
     base = run.trainer(imported)
@@ -251,13 +323,23 @@ def main() -> None:
             model = adam(start, imported, base, w, b, n, rest[3], args.lr)
         elif kind == "lbfgs":
             model = lbfgs(start, imported, base, int(rest[0]), rest[1], int(rest[2]), rest[3])
-        else:
+        elif kind == "tracks":
             model = tracks(start, imported, int(rest[0]), float(rest[1]) if len(rest) > 1 else None)
+        else:
+            begin = scored_models(start, scored.equations())["true flow, learned coefficients"]
+            if rest[1] == "truth":
+                begin = regressed_truth(start, scored)
+            print(f"  start: {score(begin, base, train, scored)}")
+            if kind == "known-flow-lm":
+                model = levenberg_marquardt(begin, imported, int(rest[0]))
+            else:
+                c_l = float(rest[2]) if len(rest) > 2 else None
+                model = tracks(begin, imported, int(rest[0]), c_l, parts="coef")
         print(f"  after ({time.perf_counter() - began:.0f} s): {score(model, base, train, scored)}")
-        if kind == "tracks":
+        if kind in ("tracks", "known-flow", "known-flow-lm"):
             mixes = scored_models(model, scored.equations())
             misfits = {
-                "before": start,
+                "before": start if kind == "tracks" else begin,
                 "after": model,
                 "its flow, true coefficients": mixes["learned flow, true coefficients"],
                 "truth": mixes["truth"],

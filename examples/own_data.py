@@ -83,6 +83,7 @@ def main() -> None:
 
     # 3. an ensemble of three runs, default settings (resumed if it exists)
     fast = ["--steps", "20", "--set", "model.width=8", "--set", "train.val_every=10"] if args.fast else []
+    fast += ["--set", "train.track_steps=2"] if args.fast else []
     fhnn("train", str(out / "track.h5"), "-o", str(out / "ens"), "--seeds", "3", "-q", *fast)
 
     # 4. what was learned, with intervals; coefficients.csv and flow.nc for other tools

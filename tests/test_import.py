@@ -57,7 +57,7 @@ from fhnn.models.base import AbstractVectorField, start_error_weighted, start_er
 from fhnn.physics.actuation import actuation_force, forcing
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import rk4_step
-from fhnn.training.plans import ESTIMATED_VELOCITY_LR_C_L, data_settings
+from fhnn.training.plans import ESTIMATED_VELOCITY_LR_C_L, ESTIMATED_VELOCITY_TRACK_STEPS, data_settings
 from fhnn.training.run import Run
 from fhnn.training.trainer import TrainConfig, Trainer
 
@@ -549,17 +549,23 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     folder, _ = imported
     data, run = folder / "track.csv.h5", folder / "run"
     with pytest.raises(SystemExit) as info:
-        main(["train", str(data), "-o", str(run), "--steps", "30", "--set", "train.shoot=8"])
+        main(
+            ["train", str(data), "-o", str(run), "--steps", "30", "--set", "train.shoot=8"]
+            + ["--set", "train.track_steps=2"]
+        )
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().err.split())
     assert "velocities and derivatives were estimated, not measured: training with" in said
     assert "train.w_deriv=0.0, train.w_step=0.0, train.batch_size=32, train.lr_c_l=10.0" in said
+    # train.track_steps, given, is not among the settings the data called for
     assert re.search(r"train\.shoot_noise=\(0\.00\d+, 0\.00\d+\) \(--set wins\)", said), said
     # its noise is estimated, never zero: the windows are not weighted by their slowness
     assert re.search(r"observations with noise \(obs_noise 0\.00\d+\): windows not weighted", said), said
     config = Run.load(run).train_config
     assert (config.shoot, config.w_deriv, config.w_step, config.batch_size) == (8, 0.0, 0.0, 32)
     assert config.lr_c_l == ESTIMATED_VELOCITY_LR_C_L == 10.0
+    assert config.track_steps == 2 and ESTIMATED_VELOCITY_TRACK_STEPS == 8
+    assert [r["iteration"] for r in Run.load(run).state.history if r.get("phase") == "tracks"] == [1, 2]
     for args in (["evaluate", str(run), "--horizons", "1,3", "--json"], ["inspect", str(run)]):
         with pytest.raises(SystemExit) as info:
             main(args)

@@ -395,8 +395,8 @@ def train(
             "--max-time",
             help="Wall-clock budget in seconds for this command's training of a run (train.max_time; "
             "compilation included, a resumed run starts a new budget): the phases before an L-BFGS "
-            "polish end at half of it, the polish at all of it, each at its next step, and the run "
-            "says what was cut [default: none]",
+            "polish or whole-track fit end at half of it, those at all of it, each at its next step, "
+            "and the run says what was cut [default: none]",
         ),
     ] = None,
     n_seeds: Annotated[
@@ -586,7 +586,7 @@ def _train_runs(
     notes = [*notes, *_windowless_note(todo[0][0], dataset)]
     for note in () if quiet else notes:
         err.print(note, soft_wrap=True, highlight=False)
-    names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam"}
+    names = {"lbfgs": "L-BFGS", "warmup": "warm-up", "adam": "Adam", "tracks": "tracks"}
     columns = (
         TextColumn("{task.fields[label]}{task.fields[phase]:9s}"),
         BarColumn(bar_width=20),
@@ -597,7 +597,8 @@ def _train_runs(
     with Progress(*columns, console=err, disable=quiet) as bar:
         callbacks, on_steps = [], []
         for run, label in todo:
-            total = run.train_config.steps + run.train_config.lbfgs_steps
+            cfg = run.train_config
+            total = cfg.steps + cfg.lbfgs_steps + cfg.track_steps
             done = run.state.step if run.state else 0
             task = bar.add_task(
                 "train", total=total, completed=done, losses="", phase="compiling", label=label
@@ -637,7 +638,12 @@ def _progress_callback(bar: Progress, task: Any) -> Any:
     """A record callback that moves ``task`` to the record's step and shows its losses."""
 
     def progress(state: Any, record: dict[str, float]) -> None:  # every term is in run.json
-        losses = f"train {record['train_loss']:.1e} val {record['val_total']:.1e}"
+        fit = (
+            f"tracks {record['track_mean_square']:.2e} m²"
+            if "track_mean_square" in record
+            else f"train {record['train_loss']:.1e}"
+        )
+        losses = f"{fit} val {record['val_total']:.1e}"
         bar.update(task, completed=state.step, losses=losses)
 
     return progress

@@ -214,6 +214,7 @@ def _plan_text(train: TrainConfig) -> str:
         f"{train.warmup_steps} L-BFGS warm-up" if train.warmup_steps else "",
         f"{train.steps} Adam steps" if train.steps else "",
         f"{train.lbfgs_steps} L-BFGS polish" if train.lbfgs_steps else "",
+        f"{train.track_steps} whole-track Levenberg–Marquardt" if train.track_steps else "",
     ]
     text = " + ".join(p for p in phases if p) or "no training steps"
     if train.warmup_steps and train.warmup_accept > 0:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import abc
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -180,6 +181,12 @@ class AbstractModel(eqx.Module):
     def window(self) -> int:
         """Consecutive samples per training example (2: a transition pair)."""
         return 2
+
+    def track_parameters(self) -> Any:
+        """The parameters the whole-track fit (:mod:`fhnn.training.tracks`) moves: a filter tree of
+        ``self`` (true at the leaves that move); ``None`` (default): the model has no whole-track
+        fit, and the phase is skipped."""
+        return None
 
     def quasi_newton_weights(self, batch: dict[str, Array]) -> Array | None:
         """Weights ``(B,)`` (mean 1) of the windows of ``batch`` in the trainer's quasi-Newton

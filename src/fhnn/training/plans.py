@@ -156,6 +156,10 @@ PLANS: dict[str, TrainingPlan] = {
 #: Multi-step window [samples] of the loss on positions used when velocities were estimated.
 ESTIMATED_VELOCITY_SHOOT = 40
 
+#: Levenberg–Marquardt iterations of the whole-track fit after Adam where velocities were
+#: estimated (``train.track_steps``; see :func:`data_settings`).
+ESTIMATED_VELOCITY_TRACK_STEPS = 8
+
 #: Learning-rate multiplier of the constant linear drag with the multi-step loss
 #: (``train.lr_c_l``; see :func:`data_settings`).
 ESTIMATED_VELOCITY_LR_C_L = 10.0
@@ -231,6 +235,9 @@ def data_settings(dataset: Dataset) -> dict[str, Any]:
                 # the windows' residuals weighed by their covariance under the start errors
                 # (three significant digits: estimates, said so in fhnn train's message)
                 "train.shoot_noise": tuple(float(f"{v:.3g}") for v in start_errors(dataset)),
+                # then every training track at once, from fitted start states, where the split
+                # of the drag between c_l and c_q is decided
+                "train.track_steps": ESTIMATED_VELOCITY_TRACK_STEPS,
             }
         )
     return out

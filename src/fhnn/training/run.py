@@ -192,7 +192,8 @@ class Run:
             return False
         if MODELS[self.kind].fit is not None:
             return self.state.step >= 1
-        return self.state.step >= self.train_config.steps + self.train_config.lbfgs_steps
+        cfg = self.train_config
+        return self.state.step >= cfg.steps + cfg.lbfgs_steps + cfg.track_steps
 
     def extend(self, config: RunConfig) -> None:
         """Continue this run under ``config``, which may differ from the stored one only by more
@@ -210,13 +211,11 @@ class Run:
                     else ""
                 )
             )
-        if (
-            self.train_config.lbfgs_steps
-            and self.state is not None
-            and self.state.step > self.train_config.steps
-        ):
+        cfg = self.train_config
+        if (cfg.lbfgs_steps or cfg.track_steps) and self.state is not None and self.state.step > cfg.steps:
             raise ConfigError(
-                f"{self.folder} has finished its L-BFGS polish; it cannot be extended with Adam"
+                f"{self.folder} has gone past its Adam phase (into the L-BFGS polish or the whole-track "
+                "fit); it cannot be extended with Adam"
             )
         self.config = config
 
@@ -441,6 +440,13 @@ class Run:
             self.state = trainer.polish(self.state, callback=callback)
             if save:
                 self.save(polished=True)
+        cfg = self.train_config
+        polished = self.state.step >= cfg.steps + cfg.lbfgs_steps
+        if cfg.track_steps > 0 and polished and not self.finished:
+            if until is None or until > cfg.steps + cfg.lbfgs_steps:
+                self.state = trainer.track_fit(self.state, callback=self.saving(callback, save))
+                if save:
+                    self.save(polished=True)
         return self.state
 
     def _fit(self, trainer: Trainer, dataset: Dataset, save: bool) -> TrainState:

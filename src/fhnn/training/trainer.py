@@ -25,6 +25,10 @@ Three phases:
    without it runs (see :meth:`TrainConfig.regularizes`).
 3. Polish (``lbfgs_steps`` quasi-Newton iterations, all parameters) from the best model so far: in
    float64 it lowers the loss far below Adam's noise floor.
+4. Whole-track fit (``track_steps`` Levenberg–Marquardt iterations, :mod:`fhnn.training.tracks`)
+   from the best model so far: every training track at once from a fitted start state, on the
+   parameters the model names; each iterate is validated like the others, so it is kept only
+   where the validation loss prefers it.
 
 The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` windows (the data
 terms, no regulariser), drawn from those starting every ``lbfgs_stride`` samples, with L-BFGS
@@ -54,6 +58,7 @@ from fhnn.data.windows import LossScales, Windows
 from fhnn.errors import ConfigError
 from fhnn.executables import StoredProgram
 from fhnn.models.base import AbstractModel
+from fhnn.training.tracks import TrackFit
 
 Array = jax.Array
 
@@ -80,6 +85,9 @@ class TrainConfig(Config):
         val_pairs: at most this many validation pairs are used per validation.
         warmup_steps: quasi-Newton iterations on the model's warm-up parameters before Adam.
         lbfgs_steps: quasi-Newton polish iterations after Adam (0: none).
+        track_steps: Levenberg–Marquardt iterations on the whole training tracks after Adam and
+            the polish, from the best model so far (0: none; :mod:`fhnn.training.tracks`; only for
+            models that name their :meth:`~fhnn.models.base.AbstractModel.track_parameters`).
         lbfgs_pairs: training pairs (a seeded subset) in the quasi-Newton phases.
         lbfgs_memory: curvature pairs kept by L-BFGS.
         shoot: samples per example of the multi-step (multiple-shooting) loss on positions (0 or
@@ -163,6 +171,7 @@ class TrainConfig(Config):
     val_pairs: int = 8192
     warmup_steps: int = 0
     lbfgs_steps: int = 0
+    track_steps: int = 0
     lbfgs_pairs: int = 8192
     lbfgs_memory: int = 100
     warmup_accept: float = 0.0
@@ -182,6 +191,7 @@ class TrainConfig(Config):
         check_positive(self, "lbfgs_memory")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
         check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot", "shoot_skip")
+        check_nonnegative(self, "track_steps")
         check_positive(self, "lbfgs_stride", "lr_c_l")
         check_nonnegative(self, "warmup_accept", "max_time")
         if self.shoot == 1:
@@ -460,6 +470,8 @@ class Trainer:
         #: The compiled programs by name (executables kept on disk: :mod:`fhnn.executables`);
         #: the first call of each (its compilation or loading) is left out of the budget.
         self._programs: dict[str, StoredProgram] = {}
+        #: The training and validation splits (the whole-track fit reads their tracks).
+        self.train_split, self.val_split = train, val
         self.train_pairs = Windows.of(train, window, skip=config.first_start)
         #: Each training window's weight ``(P,)`` under ``config.bootstrap`` (its trajectory's
         #: weight, :func:`bootstrap_weights`), else None: every window counts once.
@@ -487,19 +499,21 @@ class Trainer:
         return out if key is None else {**out, "key": key}
 
     def deadline(self, phase: str) -> float:
-        """When ``phase`` ("warmup", "adam" or "lbfgs") must end under ``config.max_time``
+        """When ``phase`` ("warmup", "adam", "lbfgs" or "tracks") must end under ``config.max_time``
         (``time.monotonic()`` seconds; infinite without a budget). The budget counts from the
         trainer's creation (a resumed run starts a new one) and leaves out the first call of each
         compiled program (:meth:`_uncounted_first`: its compilation). When a
-        polish follows, the phases before it end at :data:`PRE_POLISH_SHARE` of the budget, so the
-        polish — from the best model so far — gets the rest; the polish ends at the budget. The
+        polish or a whole-track fit follows, the phases before it end at :data:`PRE_POLISH_SHARE`
+        of the budget, so the polish (and the whole-track fit) — from the best model so far — gets
+        the rest; they end at the budget. The
         time of a discarded warm-up is sunk: Adam and the polish then split what is left in the
         same shares (without it, a warm-up that took half the budget before being discarded left
         Adam one step: ``steady_vortex`` at ``max_time=60``)."""
         cfg = self.config
         if cfg.max_time <= 0:
             return np.inf
-        share = PRE_POLISH_SHARE if phase != "lbfgs" and cfg.lbfgs_steps > 0 else 1.0
+        final = cfg.lbfgs_steps > 0 or cfg.track_steps > 0  # a polish or whole-track fit follows
+        share = PRE_POLISH_SHARE if phase not in ("lbfgs", "tracks") and final else 1.0
         return self.started + self._sunk + share * (cfg.max_time - self._sunk)
 
     def _uncounted_first(
@@ -529,7 +543,7 @@ class Trainer:
         unit = "step" if phase == "adam" else "iteration"
         share = (
             ""
-            if phase == "lbfgs" or cfg.lbfgs_steps == 0
+            if phase in ("lbfgs", "tracks") or (cfg.lbfgs_steps == 0 and cfg.track_steps == 0)
             else f", {PRE_POLISH_SHARE:.0%} of it before the polish"
             if self._sunk == 0
             else f", {PRE_POLISH_SHARE:.0%} of the {cfg.max_time - self._sunk:.0f} s a discarded warm-up "
@@ -542,8 +556,8 @@ class Trainer:
 
     @property
     def total_steps(self) -> int:
-        """Adam steps plus polish iterations."""
-        return self.config.steps + self.config.lbfgs_steps
+        """Adam steps plus polish and whole-track iterations."""
+        return self.config.steps + self.config.lbfgs_steps + self.config.track_steps
 
     def warmup(
         self, state: TrainState, callback: Callable[[TrainState, dict[str, float]], None] | None = None
@@ -582,6 +596,72 @@ class Trainer:
     ) -> TrainState:
         """Quasi-Newton on all parameters from the best model so far."""
         return self._quasi_newton(state, state.best_model, self.config.lbfgs_steps, "lbfgs", callback)
+
+    def track_fit(
+        self, state: TrainState, callback: Callable[[TrainState, dict[str, float]], None] | None = None
+    ) -> TrainState:
+        """The whole-track fit: ``track_steps`` Levenberg–Marquardt iterations on every training
+        track (:class:`~fhnn.training.tracks.TrackFit`; under ``bootstrap`` each track weighted as
+        its windows are) from the best model so far.
+
+        Each iterate is recorded with ``track_mean_square``, the mean square position residual
+        per axis [m²] on the training tracks, ``val_track_mean_square``, the same on the
+        validation tracks (their start states fitted to each iterate), and the validation
+        windows' terms. The validation tracks choose: an iterate becomes the best model where
+        they fit it better than the phase's start and every earlier iterate (``best_val`` is
+        then its validation windows' loss), since the windows hold little of what this phase
+        fits. A resumed run starts the phase again from its best model with the iterations left;
+        an iteration that no damping makes descend, or the time budget spent, ends the phase; a
+        model without :meth:`~fhnn.models.base.AbstractModel.track_parameters` skips it."""
+        cfg = self.config
+        first = cfg.steps + cfg.lbfgs_steps
+        left = self.total_steps - max(state.step, first)
+        start = state.best_model
+        free = start.track_parameters()
+        if left <= 0 or free is None:
+            state.step = self.total_steps
+            return state
+        split = self.train_split
+        weights = (
+            bootstrap_weights(np.arange(split.n_traj), split.n_traj, cfg.seed) if cfg.bootstrap else None
+        )
+        fit = TrackFit(start, free, split, weights)
+        held_out = TrackFit(start, free, self.val_split)
+        chosen = held_out.mean_square
+        done = self.total_steps - left
+        for k in range(left):
+            result = fit.step()
+            done += 1
+            self._tell("tracks", done)
+            if not result.accepted:
+                state.stopped = (
+                    f"the whole-track fit stopped at iteration {k + 1} of {left}: no step lowered "
+                    f"its objective (damping {result.damping:.1e})"
+                )
+                state.step = self.total_steps
+                break
+            record: dict[str, Any] = {"step": done, "phase": "tracks", "iteration": k + 1}
+            if k == 0:
+                record["val_track_mean_square_start"] = chosen
+            record["track_mean_square"] = result.mean_square
+            record["val_track_mean_square"] = held_out.rescore(fit.theta)
+            record["damping"] = result.damping
+            val = self.validate(result.model)
+            record.update({f"val_{name}": v for name, v in val.items()})
+            state.history.append(record)
+            state.model, state.step = result.model, done
+            if record["val_track_mean_square"] < chosen:
+                chosen = record["val_track_mean_square"]
+                state.best_model, state.best_val = result.model, val["total"]
+            late = None if k + 1 == left else self._over_budget("tracks", k + 1, left, "the whole-track fit")
+            if late is not None:
+                state.stopped = f"{state.stopped}; {late}" if state.stopped else late
+                state.step = self.total_steps
+            if callback is not None:
+                callback(state, record)
+            if late is not None:
+                break
+        return state
 
     def quasi_newton_windows(self) -> Windows:
         """The training windows of the quasi-Newton phases: a seeded subset of ``lbfgs_pairs`` of

@@ -1,0 +1,231 @@
+"""Whole-track fit: Levenberg–Marquardt on every training track's positions at once.
+
+Windows of a few seconds hold little on how the drag splits between its linear and quadratic
+parts (``c_l`` is the σ → 0 limit of the total drag, which the tracks' long-time behaviour
+tells); whole tracks hold it, but along a valley so flat that first-order fits do not move along
+it: L-BFGS on whole tracks (``benchmarks/own_data_longer_windows.py tracks``) left ``c_l``
+unchanged to 1e-7 in 200 iterations. This phase solves the Gauss–Newton normal equations instead,
+on a subspace a dense solve can afford — the parameters the model names
+(:meth:`~fhnn.models.base.AbstractModel.track_parameters`; FHNN: the output layers of both nets,
+the constant ``c_l`` and the far-field flow) — together with every track's start state
+``(x, y, vx, vy)``, which the fit owns (the tracks begin at noisy positions and estimated
+velocities). The objective is the sum of squared position residuals over all real samples, each
+track rolled out from its start state by RK4, one step per sample interval, with the recorded
+forcing.
+
+The Jacobian in the model's parameters comes by forward mode in chunks of
+:data:`TANGENT_CHUNK` tangents over batches of tracks, the start states' by forward mode per
+track (a 4-column block each); the normal equations are reduced to the model's parameters by the
+Schur complement of the start states' 4×4 blocks, so memory grows with the number of parameters
+squared, not with the data. Marquardt's damping ``λ·diag(JᵀJ)`` rises ×4 on a rejected step and
+falls ×3 on an accepted one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.flatten_util import ravel_pytree
+
+from fhnn.data.dataset import Split
+from fhnn.models.base import AbstractVectorField
+from fhnn.physics.actuation import forcing
+from fhnn.physics.integrators import rk4_solve
+
+Array = jax.Array
+
+#: Forward-mode tangents evaluated together when building the Jacobian.
+TANGENT_CHUNK = 64
+#: Tracks whose Jacobian is built and reduced together (bounds the memory of one batch).
+TRACK_BATCH = 64
+#: First Marquardt damping, relative to the diagonal of ``JᵀJ``.
+DAMPING_START = 1e-3
+#: Damping past which an iteration gives up (no step lowers the objective).
+DAMPING_MAX = 1e8
+
+
+@dataclass
+class TrackFitStep:
+    """One Levenberg–Marquardt iteration: the model after it, the mean square position residual
+    per axis [m²] after it, the damping used and whether the step was taken."""
+
+    model: AbstractVectorField
+    mean_square: float
+    damping: float
+    accepted: bool
+
+
+class TrackFit:
+    """Levenberg–Marquardt on whole tracks (see the module docstring).
+
+    Args:
+        model: the vector field to fit; ``free`` selects the parameters that move (a filter
+            tree of ``model``, as :meth:`~fhnn.models.base.AbstractModel.track_parameters`).
+        split: the tracks; each rolled out from a fitted start state over its own sample times.
+        weights: each track's weight ``(N,)`` in the sum of squares (default: 1 each; a
+            bootstrap member's trajectory weights, :func:`~fhnn.training.trainer.bootstrap_weights`).
+    """
+
+    def __init__(
+        self, model: AbstractVectorField, free: object, split: Split, weights: np.ndarray | None = None
+    ) -> None:
+        params, self._static = eqx.partition(model, free)
+        theta, self._unravel = ravel_pytree(params)
+        self.theta = jnp.asarray(theta)
+        self.p = int(theta.size)
+        self._t = jnp.asarray(split.times)
+        self._obs = jnp.asarray(split.states[..., :2])
+        self._mask = jnp.asarray(split.mask)
+        w = np.ones(split.n_traj) if weights is None else np.asarray(weights, dtype=float)
+        self._root_w = jnp.asarray(np.sqrt(w))
+        self._act = jnp.asarray(split.actuation)
+        self._res = jnp.asarray(split.force_residual)
+        self.n = 2 * int(split.mask.sum())
+        self.n_tracks = split.n_traj
+        #: Each track's start state ``(N, 4)``: the split's first state, refined by the fit.
+        self.z = jnp.asarray(split.states[:, 0])
+        self.damping = DAMPING_START
+        resid, self._jz, self._jtheta = _programs(self._static, self._unravel)
+        self._resid = resid
+        self._cost = jax.jit(lambda th, z, *tr: jnp.sum(resid(th, z, *tr) ** 2))
+        self.z = self._fit_starts(4)
+        self.value = self._total_cost(self.theta, self.z)
+
+    @property
+    def model(self) -> AbstractVectorField:
+        return eqx.combine(self._unravel(self.theta), self._static)
+
+    @property
+    def mean_square(self) -> float:
+        """Mean square position residual per axis [m²] at the current iterate (each track's
+        squares times its weight)."""
+        return self.value / self.n
+
+    def rescore(self, theta: Array) -> float:
+        """:attr:`mean_square` at the model's parameters ``theta`` (of the same structure) with
+        the start states refitted to them (four Gauss–Newton steps from the last ones): how
+        another fit's iterate explains these tracks, e.g. held-out ones."""
+        self.theta = jnp.asarray(theta)
+        self.z = self._fit_starts(4)
+        self.value = self._total_cost(self.theta, self.z)
+        return self.mean_square
+
+    def _tracks(self, rows: slice) -> tuple[Array, ...]:
+        return (
+            self._t[rows],
+            self._act[rows],
+            self._res[rows],
+            self._mask[rows],
+            self._obs[rows],
+            self._root_w[rows],
+        )
+
+    def _batches(self) -> list[slice]:
+        return [slice(i, min(i + TRACK_BATCH, self.n_tracks)) for i in range(0, self.n_tracks, TRACK_BATCH)]
+
+    def _total_cost(self, theta: Array, z: Array) -> float:
+        return float(sum(self._cost(theta, z[b], *self._tracks(b)) for b in self._batches()))
+
+    def _fit_starts(self, iterations: int) -> Array:
+        """The start states after ``iterations`` Gauss–Newton steps with the model held."""
+        z = self.z
+        for _ in range(iterations):
+            parts = []
+            for b in self._batches():
+                tr = self._tracks(b)
+                jz = self._jz(self.theta, z[b], *tr).reshape(-1, tr[0].shape[1] * 2, 4)
+                r = self._resid(self.theta, z[b], *tr).reshape(jz.shape[0], -1)
+                h = jnp.einsum("nki,nkj->nij", jz, jz)
+                g = jnp.einsum("nki,nk->ni", jz, r)
+                h = h + 1e-12 * jnp.trace(h, axis1=1, axis2=2)[:, None, None] * jnp.eye(4)
+                parts.append(z[b] - jnp.linalg.solve(h, g[..., None])[..., 0])
+            z = jnp.concatenate(parts)
+        return z
+
+    def _normal_equations(self) -> tuple[np.ndarray, ...]:
+        """``(H_θθ, g_θ, H_θz, H_zz, g_z)`` of the Gauss–Newton system at the current iterate:
+        ``(p, p)``, ``(p,)``, ``(N, p, 4)``, ``(N, 4, 4)``, ``(N, 4)``."""
+        p = self.p
+        padded = -(-p // TANGENT_CHUNK) * TANGENT_CHUNK
+        basis = jnp.eye(padded, p)
+        h_tt, g_t = np.zeros((p, p)), np.zeros(p)
+        h_tz, h_zz, g_z = [], [], []
+        for b in self._batches():
+            tr = self._tracks(b)
+            r = np.asarray(self._resid(self.theta, self.z[b], *tr)).reshape(tr[0].shape[0], -1)
+            jt = np.concatenate(
+                [
+                    np.asarray(self._jtheta(self.theta, self.z[b], basis[i : i + TANGENT_CHUNK], *tr))
+                    for i in range(0, padded, TANGENT_CHUNK)
+                ]
+            )[:p].reshape(p, r.shape[0], -1)  # (p, tracks, samples·2)
+            jz = np.asarray(self._jz(self.theta, self.z[b], *tr)).reshape(r.shape[0], -1, 4)
+            flat = jt.reshape(p, -1)
+            h_tt += flat @ flat.T
+            g_t += flat @ r.ravel()
+            h_tz.append(np.einsum("pnk,nki->npi", jt, jz, optimize=True))
+            h_zz.append(np.einsum("nki,nkj->nij", jz, jz, optimize=True))
+            g_z.append(np.einsum("nki,nk->ni", jz, r, optimize=True))
+        return h_tt, g_t, np.concatenate(h_tz), np.concatenate(h_zz), np.concatenate(g_z)
+
+    def step(self) -> TrackFitStep:
+        """One Levenberg–Marquardt iteration: the damped normal equations, reduced to the model's
+        parameters (the start states' blocks eliminated), solved at rising damping until a step
+        lowers the objective (or the damping passes :data:`DAMPING_MAX`: not taken)."""
+        h_tt, g_t, h_tz, h_zz, g_z = self._normal_equations()
+        d_t = np.where(np.diag(h_tt) > 0, np.diag(h_tt), 1.0)
+        d_z = np.where(np.diagonal(h_zz, axis1=1, axis2=2) > 0, np.diagonal(h_zz, axis1=1, axis2=2), 1.0)
+        while self.damping <= DAMPING_MAX:
+            lam = self.damping
+            a_zz = h_zz + lam * d_z[:, :, None] * np.eye(4)
+            inv_tz = np.linalg.solve(a_zz, np.transpose(h_tz, (0, 2, 1)))  # (N, 4, p)
+            inv_g = np.linalg.solve(a_zz, g_z[..., None])[..., 0]  # (N, 4)
+            reduced = h_tt + lam * np.diag(d_t) - np.einsum("npi,niq->pq", h_tz, inv_tz)
+            rhs = g_t - np.einsum("npi,ni->p", h_tz, inv_g)
+            try:
+                d_theta = -np.linalg.solve(reduced, rhs)
+            except np.linalg.LinAlgError:
+                self.damping *= 4.0
+                continue
+            d_z_step = -(inv_g + np.einsum("niq,q->ni", inv_tz, d_theta))
+            theta, z = self.theta + jnp.asarray(d_theta), self.z + jnp.asarray(d_z_step)
+            value = self._total_cost(theta, z)
+            if np.isfinite(value) and value < self.value:
+                self.theta, self.z, self.value = theta, z, value
+                self.damping = max(lam / 3.0, 1e-12)
+                return TrackFitStep(self.model, self.mean_square, lam, True)
+            self.damping *= 4.0
+        return TrackFitStep(self.model, self.mean_square, self.damping, False)
+
+
+def _programs(static: object, unravel: Callable[[Array], object]) -> tuple[Callable[..., Array], ...]:
+    """The compiled residuals ``(B, T, 2)`` [m] of a batch of tracks (each times the square root
+    of its track's weight), their Jacobian blocks in the
+    start states ``(B, T, 2, 4)`` and Jacobian-vector products with a chunk of tangents in the
+    model's parameters ``(C, B, T, 2)``."""
+
+    def one(
+        theta: Array, s0: Array, tt: Array, aa: Array, rr: Array, mk: Array, ob: Array, rw: Array
+    ) -> Array:
+        model = eqx.combine(unravel(theta), static)
+        field = lambda x, ti: model(x, ti, forcing(aa, ti, tt, rr))  # noqa: E731
+        return rw * jnp.where(mk[:, None], rk4_solve(field, s0, tt)[:, :2] - ob, 0.0)
+
+    axes = (None, 0, 0, 0, 0, 0, 0, 0)
+
+    def resid(theta: Array, z: Array, *tracks: Array) -> Array:
+        return jax.vmap(one, in_axes=axes)(theta, z, *tracks)
+
+    def jac_z(theta: Array, z: Array, *tracks: Array) -> Array:
+        return jax.vmap(jax.jacfwd(one, argnums=1), in_axes=axes)(theta, z, *tracks)
+
+    def jvp_theta(theta: Array, z: Array, tangents: Array, *tracks: Array) -> Array:
+        push = lambda v: jax.jvp(lambda th: resid(th, z, *tracks), (theta,), (v,))[1]  # noqa: E731
+        return jax.vmap(push)(tangents)
+
+    return jax.jit(resid), jax.jit(jac_z), jax.jit(jvp_theta)

@@ -1,0 +1,157 @@
+"""The whole-track fit (:mod:`fhnn.training.tracks`): its normal equations against finite
+differences, an exactly representable truth recovered, and its place as the last training phase."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.flatten_util import ravel_pytree
+
+from fhnn.errors import ConfigError
+from fhnn.models.baselines import MLPConfig
+from fhnn.models.fhnn import FHNNConfig
+from fhnn.physics.actuation import forcing
+from fhnn.physics.integrators import rk4_solve
+from fhnn.training.run import Run, RunConfig
+from fhnn.training.tracks import TrackFit
+from fhnn.training.trainer import TrainConfig
+
+from .conftest import arrays, small_dataset
+
+
+@pytest.fixture(scope="module")
+def setting(tmp_path_factory):
+    """A small FHNN, a truth that differs from it in the fitted parameters only, and the
+    training tracks observed exactly under that truth (start states: the data's)."""
+    ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
+    run = Run.create(tmp_path_factory.mktemp("tracks") / "run", ds, RunConfig(model=FHNNConfig(width=8)))
+    model = run.skeleton()
+    free = model.track_parameters()
+    params, static = eqx.partition(model, free)
+    theta, unravel = ravel_pytree(params)
+    step = 0.02 * jax.random.normal(jax.random.PRNGKey(7), theta.shape) * (jnp.abs(theta) + 0.1)
+    truth = eqx.combine(unravel(theta + step), static)
+    sp = ds.train
+
+    def track(s0, tt, aa, rr):
+        return rk4_solve(lambda x, ti: truth(x, ti, forcing(aa, ti, tt, rr)), s0, tt)
+
+    states = jax.vmap(track)(
+        jnp.asarray(sp.states[:, 0]),
+        jnp.asarray(sp.times),
+        jnp.asarray(sp.actuation),
+        jnp.asarray(sp.force_residual),
+    )
+    exact = dataclasses.replace(sp, states=np.asarray(states))
+    return model, free, truth, exact
+
+
+def test_the_normal_equations_gradient_matches_finite_differences(setting):
+    """``Jᵀr`` of the model's parameters and of the start states equals half the central finite
+    difference of the summed squares along random directions."""
+    model, free, _, exact = setting
+    fit = TrackFit(model, free, exact)
+    fit.z = fit.z + jnp.asarray([1e-3, -1e-3, 2e-3, 1e-3])  # off the start states' optimum
+    _, g_t, _, _, g_z = fit._normal_equations()
+    rng = np.random.default_rng(3)
+    v_t, v_z = rng.normal(size=fit.p), rng.normal(size=fit.z.shape)
+    eps = 1e-6
+    for direction, grad in ((v_t, g_t), (v_z, g_z)):
+        on_theta = direction is v_t
+
+        def cost(e, direction=direction, on_theta=on_theta):
+            theta = fit.theta + e * direction if on_theta else fit.theta
+            z = fit.z if on_theta else fit.z + e * direction
+            return fit._total_cost(theta, z)
+
+        fd = (cost(eps) - cost(-eps)) / (2 * eps)
+        want = np.sum(grad * direction)
+        assert abs(want) > 1e-3 * np.linalg.norm(grad) * np.linalg.norm(direction)
+        np.testing.assert_allclose(0.5 * fd, want, rtol=1e-6)
+
+
+def test_a_tracks_weight_multiplies_its_squares(setting):
+    """With track weights the objective is the weighted sum of the tracks' own sums of squares
+    (a bootstrap member's fit), the start states being fitted in either case."""
+    model, free, _, exact = setting
+    weights = (1.0 + np.arange(exact.n_traj)) / 2.0
+    plain = TrackFit(model, free, exact)
+    weighted = TrackFit(model, free, exact, weights)
+    np.testing.assert_allclose(np.asarray(weighted.z), np.asarray(plain.z)[...], rtol=0, atol=1e-12)
+    each = [
+        plain._cost(plain.theta, plain.z[k : k + 1], *plain._tracks(slice(k, k + 1)))
+        for k in range(exact.n_traj)
+    ]
+    np.testing.assert_allclose(weighted.value, np.dot(weights, each), rtol=1e-12)
+
+
+def test_it_recovers_an_exactly_representable_truth(setting):
+    """Started from the model the truth was perturbed from, and from start states 1 mm and
+    1 mm/s off, Levenberg–Marquardt drives the exact tracks' residuals twelve orders of magnitude
+    down, the start states onto the true ones and the vector field along the tracks onto the
+    truth's."""
+    model, free, truth, exact = setting
+    fit = TrackFit(model, free, exact)
+    fit.z = jnp.asarray(exact.states[:, 0] + np.r_[1e-3, -1e-3, 1e-3, 1e-3])
+    fit.value = fit._total_cost(fit.theta, fit.z)
+    first = fit.mean_square
+    for _ in range(25):
+        step = fit.step()
+        if not step.accepted:
+            break
+    assert first > 1e-8
+    assert fit.mean_square < 1e-20  # rms 1e-10 m, from 1.9 mm
+    np.testing.assert_allclose(np.asarray(fit.z), exact.states[:, 0], atol=1e-9)
+    # the vector field along the tracks (what exact positions determine; how the drag splits
+    # between c_l and c_q, say, they need not), to 1e-6 of the accelerations there (~0.1 m/s²)
+    sp = exact
+    for i in range(sp.n_traj):
+        for k in (0, sp.n_times // 2, sp.n_times - 1):
+            t = jnp.asarray(sp.times[i, k])
+            force = forcing(
+                jnp.asarray(sp.actuation[i]), t, jnp.asarray(sp.times[i]), jnp.asarray(sp.force_residual[i])
+            )
+            s = jnp.asarray(sp.states[i, k])
+            np.testing.assert_allclose(
+                np.asarray(fit.model(s, t, force)), np.asarray(truth(s, t, force)), rtol=1e-6, atol=1e-7
+            )
+
+
+def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
+    """``train.track_steps``: after Adam, records of phase "tracks" at the steps after Adam's, the
+    run finished (a second call trains nothing); a model that names no track parameters (the
+    neural ODE) passes the phase without records; a negative count is refused."""
+    ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
+    config = TrainConfig(steps=4, val_every=2, batch_size=16, track_steps=2)
+    run = Run.create(tmp_path / "fhnn", ds, RunConfig(model=FHNNConfig(width=8), train=config))
+    state = run.train(ds)
+    tracks = [r for r in state.history if r.get("phase") == "tracks"]
+    assert [r["step"] for r in tracks] == [5, 6] or (state.stopped and "whole-track" in state.stopped)
+    assert all(r["track_mean_square"] > 0 and "val_total" in r for r in tracks)
+    assert np.all(np.diff([r["track_mean_square"] for r in tracks]) < 0)
+    # the validation tracks choose: the iterate that fits them best, where better than the start
+    held_out = [tracks[0]["val_track_mean_square_start"]] + [r["val_track_mean_square"] for r in tracks]
+    best = int(np.argmin(held_out))
+    if best > 0:
+        assert state.best_val == tracks[best - 1]["val_total"]
+        if best == len(tracks):  # the last iterate: the run's model is its best
+            for a, b in zip(arrays(state.best_model), arrays(state.model), strict=True):
+                np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    else:
+        assert state.best_val == min(r["val_total"] for r in state.history if r.get("phase") != "tracks")
+    assert run.finished and state.step == 6
+    assert Run.load(tmp_path / "fhnn").finished
+    before = len(state.history)
+    assert len(run.train(ds).history) == before
+
+    mlp = Run.create(tmp_path / "mlp", ds, RunConfig(kind="node", model=MLPConfig(width=8), train=config))
+    state = mlp.train(ds)
+    assert state.step == 6 and mlp.finished
+    assert not any(r.get("phase") == "tracks" for r in state.history)
+    with pytest.raises(ConfigError, match="track_steps"):
+        TrainConfig(track_steps=-1)
