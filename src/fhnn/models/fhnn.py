@@ -359,8 +359,8 @@ class FHNN(AbstractVectorField):
         one), the constant ``c_l`` and the far-field flow's ``Q`` and ``b``: with a 64-wide net 331
         parameters, few enough for the whole-track fit's dense Gauss–Newton solve, and the ones
         the drag split and the flow's large-scale error move along (on issue 14's data, data
-        seed 1, 20 iterations took ``c_l`` from 8.1 to 1.0 % off with the flow learned, and to
-        0.13 % with the true flow and the coefficient net's output layer alone). ``None`` for a
+        seed 1, ``fhnn train``'s 20 iterations took ``c_l`` from 8.1 to 0.84 % off,
+        ``docs/benchmarks/own_data_seed1_tracks20.json``). ``None`` for a
         flow that is not a :class:`StreamNet` or a coefficient law that is not a
         :class:`CoefficientNet`."""
         coef, flow = self.coefficients, self.flow
