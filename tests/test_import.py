@@ -753,7 +753,20 @@ def test_training_leaves_out_and_names_tracks_shorter_than_its_windows(imported,
     assert short["train"] > 0, short  # the split's seed puts some of the four into training
     capsys.readouterr()
     with pytest.raises(SystemExit) as info:
-        main(["train", str(data), "-o", str(run), "--steps", "2", "--set", "model.width=8"])
+        main(
+            [
+                "train",
+                str(data),
+                "-o",
+                str(run),
+                "--steps",
+                "2",
+                "--set",
+                "model.width=8",
+                "--set",
+                "train.track_steps=1",
+            ]
+        )
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().err.split())
     parts = [f"{short['train']} of {dataset.train.n_traj} training"]
@@ -763,7 +776,7 @@ def test_training_leaves_out_and_names_tracks_shorter_than_its_windows(imported,
         f"{' and '.join(parts)} trajectories are shorter than the training windows (40 samples) and are "
         "left out of the loss (--set train.shoot=N for shorter windows)"
     ) in said, said
-    assert Run.load(run).state.step == 2
+    assert Run.load(run).state.step == 3  # 2 Adam steps and the whole-track fit's one iteration
 
 
 def test_windows_can_skip_each_trajectorys_first_samples_and_tile_it(fine, rng) -> None:
@@ -1123,7 +1136,18 @@ def test_predict_keeps_the_clock_of_the_imported_table(tmp_path, capsys, monkeyp
     data, run = tmp_path / "track.h5", tmp_path / "run"
     for args in (
         ["import", str(tmp_path / "track.csv"), "-o", str(data), "--mass", "10", "--area", "0.1"],
-        ["train", str(data), "-o", str(run), "--steps", "0", "--set", "model.width=8"],
+        [
+            "train",
+            str(data),
+            "-o",
+            str(run),
+            "--steps",
+            "0",
+            "--set",
+            "model.width=8",
+            "--set",
+            "train.track_steps=0",
+        ],
     ):
         with pytest.raises(SystemExit) as info:
             main([*args, *(["--time-dependent"] if args[0] == "import" else []), "-q"])
