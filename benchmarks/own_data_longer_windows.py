@@ -224,16 +224,13 @@ def tracks(model, imported, iterations: int, c_l: float | None = None, parts: st
     return as_model(x / scale)
 
 
-def levenberg_marquardt(model, imported, iterations: int):
-    """``model`` after ``iterations`` of the library's whole-track Levenberg–Marquardt on the
-    training tracks, moving the coefficient net's output layer and ``c_l`` (the flow held)."""
-    free = jax.tree.map(lambda _: False, model)
-    for pick in (
-        lambda m: m.eom.coefficients.mlp.layers[-1].weight,
-        lambda m: m.eom.coefficients.mlp.layers[-1].bias,
-        lambda m: m.eom.coefficients.c_l_raw,
-    ):
-        free = eqx.tree_at(pick, free, replace=True)
+def levenberg_marquardt(model, learned, imported, iterations: int):
+    """``model`` (the learned run's with the true flow in its place) after ``iterations`` of the
+    library's whole-track Levenberg–Marquardt on the training tracks, moving the coefficient
+    parameters ``fhnn train``'s phase moves in the ``learned`` model (the FHNN's
+    :meth:`~fhnn.models.fhnn.FHNN.track_parameters`: its output layer and ``c_l``), the flow held."""
+    held = jax.tree.map(lambda _: False, model.eom.flow)
+    free = eqx.tree_at(lambda m: m.eom.flow, learned.track_parameters(), replace=held)
     fit = TrackFit(model, free, imported.train)
     for k in range(iterations):
         step = fit.step()
@@ -331,7 +328,7 @@ def main() -> None:
                 begin = regressed_truth(start, scored)
             print(f"  start: {score(begin, base, train, scored)}")
             if kind == "known-flow-lm":
-                model = levenberg_marquardt(begin, imported, int(rest[0]))
+                model = levenberg_marquardt(begin, start, imported, int(rest[0]))
             else:
                 c_l = float(rest[2]) if len(rest) > 2 else None
                 model = tracks(begin, imported, int(rest[0]), c_l, parts="coef")

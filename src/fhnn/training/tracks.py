@@ -3,8 +3,8 @@
 Windows of a few seconds hold little on how the drag splits between its linear and quadratic
 parts (``c_l`` is the σ → 0 limit of the total drag, which the tracks' long-time behaviour
 tells); whole tracks hold it, but along a valley so flat that first-order fits do not move along
-it: L-BFGS on whole tracks (``benchmarks/own_data_longer_windows.py tracks``) left ``c_l``
-unchanged to 1e-7 in 200 iterations. This phase solves the Gauss–Newton normal equations instead,
+it: L-BFGS on whole tracks (``benchmarks/own_data_longer_windows.py known-flow``) moved ``c_l``'s
+raw parameter by 2e-7 in 100 iterations. This phase solves the Gauss–Newton normal equations instead,
 on a subspace a dense solve can afford — the parameters the model names
 (:meth:`~fhnn.models.base.AbstractModel.track_parameters`; FHNN: the output layers of both nets,
 the constant ``c_l`` and the far-field flow) — together with every track's start state
@@ -178,8 +178,9 @@ class TrackFit:
         parameters (the start states' blocks eliminated), solved at rising damping until a step
         lowers the objective (or the damping passes :data:`DAMPING_MAX`: not taken)."""
         h_tt, g_t, h_tz, h_zz, g_z = self._normal_equations()
-        d_t = np.where(np.diag(h_tt) > 0, np.diag(h_tt), 1.0)
-        d_z = np.where(np.diagonal(h_zz, axis1=1, axis2=2) > 0, np.diagonal(h_zz, axis1=1, axis2=2), 1.0)
+        # Marquardt's scaling: the diagonal of JᵀJ, 1 where a parameter has no effect at all
+        d_t, d_z = np.diag(h_tt), np.diagonal(h_zz, axis1=1, axis2=2)
+        d_t, d_z = np.where(d_t > 0, d_t, 1.0), np.where(d_z > 0, d_z, 1.0)
         while self.damping <= DAMPING_MAX:
             lam = self.damping
             a_zz = h_zz + lam * d_z[:, :, None] * np.eye(4)

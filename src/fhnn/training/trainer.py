@@ -11,7 +11,7 @@ Loss ``L = w_deriv L_deriv + w_step L_step + λ_flow(step) L_flow``:
   weight anneals linearly from ``lambda_flow`` to 0 over the first ``flow_anneal`` fraction of the
   steps, so its bias towards zero-curvature flows (a vortex has curvature) is gone by the end.
 
-Three phases:
+Four phases:
 
 1. Warm-up (``warmup_steps`` quasi-Newton iterations; only for models whose
    :meth:`~fhnn.models.base.AbstractModel.warmup` names a part): the part is fitted full-batch
@@ -27,8 +27,8 @@ Three phases:
    float64 it lowers the loss far below Adam's noise floor.
 4. Whole-track fit (``track_steps`` Levenberg–Marquardt iterations, :mod:`fhnn.training.tracks`)
    from the best model so far: every training track at once from a fitted start state, on the
-   parameters the model names; each iterate is validated like the others, so it is kept only
-   where the validation loss prefers it.
+   parameters the model names; an iterate is kept only where the validation tracks, their start
+   states fitted to it, fit it better than the phase's start and every earlier iterate.
 
 The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` windows (the data
 terms, no regulariser), drawn from those starting every ``lbfgs_stride`` samples, with L-BFGS
