@@ -17,8 +17,9 @@ from fhnn.models.baselines import MLPConfig
 from fhnn.models.fhnn import FHNNConfig
 from fhnn.physics.actuation import forcing
 from fhnn.physics.integrators import rk4_solve
+from fhnn.training import tracks as track_module
 from fhnn.training.run import Run, RunConfig
-from fhnn.training.tracks import TrackFit
+from fhnn.training.tracks import TrackFit, track_pieces
 from fhnn.training.trainer import TrainConfig
 
 from .conftest import arrays, small_dataset
@@ -123,14 +124,17 @@ def test_it_recovers_an_exactly_representable_truth(setting):
 
 
 def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
-    """``train.track_steps``: after Adam, records of phase "tracks" at the steps after Adam's, the
-    run finished (a second call trains nothing); a model that names no track parameters (the
+    """``train.track_steps``: after Adam, records of phase "tracks" at the steps after Adam's (the
+    first saying how many tracks ``train.track_samples`` let the fit hold), the run finished (a second call trains nothing); a model that names no track parameters (the
     neural ODE) passes the phase without records; a negative count is refused."""
     ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
-    config = TrainConfig(steps=4, val_every=2, batch_size=16, track_steps=2)
+    # a budget one sample short of the training tracks: the fit holds all but one of them
+    budget = ds.train.n_traj * ds.train.n_times - 1
+    config = TrainConfig(steps=4, val_every=2, batch_size=16, track_steps=2, track_samples=budget)
     run = Run.create(tmp_path / "fhnn", ds, RunConfig(model=FHNNConfig(width=8), train=config))
     state = run.train(ds)
     tracks = [r for r in state.history if r.get("phase") == "tracks"]
+    assert tracks[0]["tracks"] == ds.train.n_traj - 1 and tracks[0]["val_tracks"] == ds.val.n_traj
     assert [r["step"] for r in tracks] == [5, 6] or (state.stopped and "whole-track" in state.stopped)
     assert all(r["track_mean_square"] > 0 and "val_total" in r for r in tracks)
     assert np.all(np.diff([r["track_mean_square"] for r in tracks]) < 0)
@@ -155,3 +159,37 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     assert not any(r.get("phase") == "tracks" for r in state.history)
     with pytest.raises(ConfigError, match="track_steps"):
         TrainConfig(track_steps=-1)
+
+
+def test_track_pieces_cover_every_sample_once_and_keep_to_the_budget(monkeypatch):
+    """A split within the budget is kept as it is; one over it is cut into pieces of at most
+    ``TRACK_PIECE`` samples that together hold every real sample once, in order, at its own
+    time, with its own state and force; under a tight budget as many pieces are kept as fit,
+    one from each track before any track gives a second; a budget below 1 is refused."""
+    monkeypatch.setattr(track_module, "TRACK_PIECE", 7)
+    ds = small_dataset("steady_vortex", n_traj=10, duration=3.0)
+    sp = ds.train.subset(np.arange(5))
+    sp = dataclasses.replace(sp, t=np.asarray(sp.times).copy(), lengths=np.asarray([61, 20, 7, 31, 12]))
+    same, parent = track_pieces(sp, sp.n_traj * sp.n_times, seed=0)
+    assert same is sp and np.array_equal(parent, np.arange(sp.n_traj))
+
+    pieces, parent = track_pieces(sp, sp.n_traj * sp.n_times - 1, seed=0)  # just over: all pieces fit
+    assert np.all(pieces.sample_counts <= 7) and pieces.n_times == 7
+    for i in range(sp.n_traj):
+        mine = np.flatnonzero(parent == i)
+        t = np.concatenate([pieces.times[j, : pieces.sample_counts[j]] for j in mine])
+        s = np.concatenate([pieces.states[j, : pieces.sample_counts[j]] for j in mine])
+        f = np.concatenate([pieces.forces[j, : pieces.sample_counts[j]] for j in mine])
+        n = sp.sample_counts[i]
+        np.testing.assert_array_equal(t, sp.times[i, :n])
+        np.testing.assert_array_equal(s, sp.states[i, :n])
+        np.testing.assert_array_equal(f, sp.forces[i, :n])
+        np.testing.assert_array_equal(pieces.actuation[mine], sp.actuation[[i] * mine.size])
+    assert np.all(np.diff(pieces.times, axis=1) > 0)  # padding times go on increasing
+
+    few, parent = track_pieces(sp, 5 * 7 + 3, seed=3)  # room for 5 pieces of 7: one per track
+    assert few.n_traj == 5 and sorted(parent) == list(range(5))
+    seven, parent = track_pieces(sp, 7 * 7, seed=3)
+    assert seven.n_traj == 7 and set(parent) == set(range(5))
+    with pytest.raises(ConfigError, match="track_samples"):
+        TrainConfig(track_samples=0)

@@ -58,7 +58,7 @@ from fhnn.data.windows import LossScales, Windows
 from fhnn.errors import ConfigError
 from fhnn.executables import StoredProgram
 from fhnn.models.base import AbstractModel
-from fhnn.training.tracks import TrackFit
+from fhnn.training.tracks import TrackFit, track_pieces
 
 Array = jax.Array
 
@@ -88,6 +88,11 @@ class TrainConfig(Config):
         track_steps: Levenberg–Marquardt iterations on the whole training tracks after Adam and
             the polish, from the best model so far (0: none; :mod:`fhnn.training.tracks`; only for
             models that name their :meth:`~fhnn.models.base.AbstractModel.track_parameters`).
+        track_samples: the most samples (tracks × their padded length) the whole-track fit
+            holds, on the training tracks and on the validation tracks each; larger splits are
+            cut into pieces and a seeded subset kept (:func:`~fhnn.training.tracks.track_pieces`),
+            so an iteration's cost does not grow with the data (issue 14's 49 training tracks of
+            20 s, 19,257 samples padded, fit whole).
         lbfgs_pairs: training pairs (a seeded subset) in the quasi-Newton phases.
         lbfgs_memory: curvature pairs kept by L-BFGS.
         shoot: samples per example of the multi-step (multiple-shooting) loss on positions (0 or
@@ -172,6 +177,7 @@ class TrainConfig(Config):
     warmup_steps: int = 0
     lbfgs_steps: int = 0
     track_steps: int = 0
+    track_samples: int = 25_000
     lbfgs_pairs: int = 8192
     lbfgs_memory: int = 100
     warmup_accept: float = 0.0
@@ -188,7 +194,7 @@ class TrainConfig(Config):
 
     def validate(self) -> None:
         check_positive(self, "batch_size", "lr", "lr_decay", "val_every", "val_pairs", "lbfgs_pairs")
-        check_positive(self, "lbfgs_memory")
+        check_positive(self, "lbfgs_memory", "track_samples")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
         check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot", "shoot_skip")
         check_nonnegative(self, "track_steps")
@@ -621,12 +627,13 @@ class Trainer:
         if left <= 0 or free is None:
             state.step = self.total_steps
             return state
-        split = self.train_split
-        weights = (
-            bootstrap_weights(np.arange(split.n_traj), split.n_traj, cfg.seed) if cfg.bootstrap else None
-        )
+        split, parent = track_pieces(self.train_split, cfg.track_samples, cfg.seed + 5)
+        n_tracks = self.train_split.n_traj
+        weights = None
+        if cfg.bootstrap:  # each piece weighted as its track
+            weights = bootstrap_weights(np.arange(n_tracks), n_tracks, cfg.seed)[parent]
         fit = TrackFit(start, free, split, weights)
-        held_out = TrackFit(start, free, self.val_split)
+        held_out = TrackFit(start, free, track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0])
         chosen = held_out.mean_square
         done = self.total_steps - left
         for k in range(left):
@@ -643,6 +650,8 @@ class Trainer:
             record: dict[str, Any] = {"step": done, "phase": "tracks", "iteration": k + 1}
             if k == 0:
                 record["val_track_mean_square_start"] = chosen
+                record["tracks"] = fit.n_tracks  # tracks (or pieces of them) in the fit
+                record["val_tracks"] = held_out.n_tracks
             record["track_mean_square"] = result.mean_square
             record["val_track_mean_square"] = held_out.rescore(fit.theta)
             record["damping"] = result.damping
