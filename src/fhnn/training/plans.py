@@ -214,7 +214,10 @@ def data_settings(dataset: Dataset) -> dict[str, Any]:
       (``docs/benchmarks/own_data*_tracks{8,20}.json``). 20 was so chosen on seed 1; on data
       seed 2 (not used before; iteration 6 kept) against Adam alone: c_l 6.2 → 4.9 %, flow 0.53
       → 0.46 %, held-out ``fhnn predict`` 1.47 → 1.17 mm, but the validation forecast 2.29 →
-      2.85 mm (``own_data_seed2_tracks{0,20}.json``). It costs about 18 s an iteration here.
+      2.85 mm (``own_data_seed2_tracks{0,20}.json``) — from each track's first second; from an
+      origin every 2 s (98 forecasts) 2.450 → 2.498 mm, and 2.241 → 2.201 / 2.373 → 2.213 mm on
+      seeds 0 / 1. It costs about 18 s an iteration here, at most ``train.track_samples``
+      samples held (:func:`~fhnn.training.tracks.track_pieces`) on larger data.
 
     Tried on that data and not taken (the validation loss or forecast decides; numbers in issue
     14's notes): windows of 80 samples in batches of 16 (before the weighting, at the same cost:
