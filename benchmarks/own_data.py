@@ -391,8 +391,8 @@ def origin_table(
             name = f"{traj}@{start - t0:g}"
             pieces.append(name)
             for c in table:
-                parts[c].append(np.full(rows.size, name) if c == "traj_id" else table[c][rows])
-            parts["t"][-1] = parts["t"][-1] - start
+                column = np.full(rows.size, name) if c == "traj_id" else table[c][rows]
+                parts[c].append(column - start if c == "t" else column)
             start += every
     return {c: np.concatenate(v) for c, v in parts.items()}, pieces
 

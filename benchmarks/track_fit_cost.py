@@ -40,6 +40,16 @@ def iteration_seconds(model, split) -> float:
     return time.perf_counter() - start
 
 
+def measure(model, split, label: str) -> float:
+    """Print ``label`` with ``split``'s size and :func:`iteration_seconds` on it; seconds per
+    held sample."""
+    sec = iteration_seconds(model, split)
+    held = split.n_traj * split.n_times
+    size = f"{split.n_traj} tracks x {split.n_times} samples = {held} held"
+    print(f"  {label}: {size}, {sec:.1f} s per iteration")
+    return sec / held
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--tracks", type=int, default=40, help="tracks simulated (70 %% train)")
@@ -57,19 +67,11 @@ def main() -> None:
             model = Run.create(Path(folder) / "run", ds, RunConfig()).skeleton()
         whole = ds.train
         pieces, _ = track_pieces(whole, args.budget, seed=5)
-        rows = {"whole split": whole, "within the budget": pieces}
-        per_sample = None
-        for name, split in rows.items():
-            held = split.n_traj * split.n_times
-            if name == "within the budget" and split is whole:
-                print(f"  {seconds:g} s tracks: the split fits the budget; nothing cut")
-                break
-            sec = iteration_seconds(model, split)
-            per_sample = per_sample or sec / held
-            print(
-                f"  {seconds:g} s tracks, {name}: {split.n_traj} tracks x {split.n_times} samples "
-                f"= {held} held, {sec:.1f} s per iteration"
-            )
+        per_sample = measure(model, whole, f"{seconds:g} s tracks, whole split")
+        if pieces is whole:
+            print(f"  {seconds:g} s tracks: the split fits the budget; nothing cut")
+        else:
+            measure(model, pieces, f"{seconds:g} s tracks, within the budget")
         big = 700 * 2000
         minutes = per_sample * big / 60
         print(
