@@ -18,12 +18,17 @@ true value:
 - ``law``: the truth's own form — ``m_ax, m_ay, c_l`` constants, ``c_q = c_inf + c_0 / (1 + σ/σ_ref)``
   (8 parameters). Knowing the form of the law is more than FHNN knows, so this is a floor;
 - ``knots``: ``c_q(σ)`` free at ``--knots`` values of σ, linear between them and held beyond
-  (spread over the visited σ by quantile): closer to what a coefficient net must pin down;
+  (spread over the visited σ by quantile, or evenly in log σ with ``--log-knots``: as free at the
+  slowest speeds, where the data are few, as at the fastest): closer to what a coefficient net
+  must pin down;
 - ``all-knots``: the added masses free at the same values of σ too (FHNN's masses are functions of
   ``(r, σ)``, as are its ``c_q``).
 
 FHNN's nets (flow and coefficients as functions) have more freedom than either, so its errors can
-only be larger. The bound says whether a target can be met with these data at all: a 90 %
+only be larger. ``--flow-bumps K`` frees the flow besides ``Γ`` and ``r_c``: ``K × K`` Gaussian
+stream-function bumps over the training positions' box, each as wide as their spacing
+(:class:`BumpedFlow`), a learned flow's large-scale freedom; bumps no track comes near are left out
+as not identifiable. The bound says whether a target can be met with these data at all: a 90 %
 interval of an unbiased estimate is at least ``2 · 1.645 · sd`` wide.
 
 ``--window W`` cuts every track into windows of ``W`` observed samples (each observation in one),
@@ -37,7 +42,7 @@ bound.
 Usage::
 
     python benchmarks/own_data_bound.py [--out DIR] [--data-seed K] [--no-forcing] [--noise STD]
-        [--knots K] [--window W [--start-prior]]
+        [--knots K] [--log-knots] [--flow-bumps K] [--window W [--start-prior]]
 
 ``--out`` is ``own_data.py``'s folder (default ``benchmarks/_own_data``): its data are reused
 (simulated and imported as ``own_data.py`` does where they are not there).
@@ -57,12 +62,34 @@ from own_data import data_suffix, make_data, with_truth
 
 from fhnn.data.dataset import read_dataset
 from fhnn.data.table import start_errors
-from fhnn.evaluation.recovery import SIGMA_BANDS, drag_terms, visited_r_sigma
+from fhnn.evaluation.recovery import SIGMA_BANDS, drag_terms, flow_box, visited_r_sigma
 from fhnn.physics.actuation import actuation_force
 from fhnn.physics.body import AbstractLaw, CoefficientLaws, Constant
+from fhnn.physics.flows import AbstractFlow
 from fhnn.physics.integrators import rk4_solve
 
 LEVEL_Z = 1.6448536269514722  # the normal's 95 % quantile: a 90 % interval is ±z·sd
+
+
+class BumpedFlow(AbstractFlow):
+    """``base`` plus Gaussian stream-function bumps ``Σ_k a_k exp(−|x − c_k|² / 2w²)`` [m²/s]:
+    large-scale flow freedom beside the base flow's own parameters."""
+
+    base: AbstractFlow
+    centres: jax.Array  # (K, 2) [m]
+    width: float  # [m]
+    amplitudes: jax.Array  # (K,) [m²/s]
+
+    def bumps(self, xy):
+        d2 = jnp.sum((jnp.asarray(xy) - self.centres) ** 2, axis=1)
+        return jnp.dot(self.amplitudes, jnp.exp(-0.5 * d2 / self.width**2))
+
+    def stream(self, xy, t):
+        return self.base.stream(xy, t) + self.bumps(xy)
+
+    def velocity(self, xy, t):
+        g = jax.grad(self.bumps)(jnp.asarray(xy, float))
+        return self.base.velocity(xy, t) + jnp.stack([g[1], -g[0]])
 
 
 class KnotLaw(AbstractLaw):
@@ -79,10 +106,12 @@ class KnotLaw(AbstractLaw):
 FAMILIES = {"law": (), "knots": ("c_q",), "all-knots": ("m_ax", "m_ay", "c_q")}
 
 
-def parametrised(truth, family: str, knots: np.ndarray):
+def parametrised(truth, family: str, knots: np.ndarray, bumps: tuple[np.ndarray, float] | None = None):
     """``(build, names)``: ``build(θ)`` the equations with each free parameter at ``base · (1 + θ_i)``,
     ``names`` their names. The base is the truth: its constants and its ``c_q`` law's three
-    parameters, or for a coefficient free at the knots (:data:`FAMILIES`) its true law sampled there."""
+    parameters, or for a coefficient free at the knots (:data:`FAMILIES`) its true law sampled there.
+    ``bumps = (centres (K, 2) [m], width [m])``: the flow free besides in K Gaussian stream-function
+    bumps (:class:`BumpedFlow`), their amplitudes ``θ · Γ/2π`` (zero in the truth) last in ``θ``."""
     co, flow = truth.coefficients, truth.flow
     sig = jnp.asarray(knots)
     free = FAMILIES[family]
@@ -99,6 +128,7 @@ def parametrised(truth, family: str, knots: np.ndarray):
     parts.append(("c_q", cq_base))
     sizes = [len(b) for _, b in parts]
     base = jnp.concatenate([b for _, b in parts])
+    n_base = int(base.size)
     names = []
     for name, b in parts:
         if len(b) == 1:
@@ -108,9 +138,16 @@ def parametrised(truth, family: str, knots: np.ndarray):
         else:
             names += [f"{name}({k:.3g})" for k in knots]
 
+    if bumps is not None:
+        names += [f"bump{k}" for k in range(len(bumps[0]))]
+
     def build(theta):
         values = dict(
-            zip([n for n, _ in parts], jnp.split(base * (1.0 + theta), np.cumsum(sizes)[:-1]), strict=True)
+            zip(
+                [n for n, _ in parts],
+                jnp.split(base * (1.0 + theta[:n_base]), np.cumsum(sizes)[:-1]),
+                strict=True,
+            )
         )
 
         def law_of(name):
@@ -127,6 +164,10 @@ def parametrised(truth, family: str, knots: np.ndarray):
         eom = eqx.tree_at(
             lambda e: (e.flow.gamma, e.flow.core_radius), truth, (values["gamma"][0], values["r_c"][0])
         )
+        if bumps is not None:
+            amplitudes = theta[n_base:] * flow.gamma / (2.0 * np.pi)
+            flow_b = BumpedFlow(eom.flow, jnp.asarray(bumps[0]), float(bumps[1]), amplitudes)
+            eom = eqx.tree_at(lambda e: e.flow, eom, flow_b)
         return eqx.tree_at(lambda e: e.coefficients, eom, coefficients)
 
     return build, names
@@ -254,6 +295,11 @@ def main() -> None:
     p.add_argument("--noise", type=float, default=1e-3, help="std of the position noise [m]")
     p.add_argument("--knots", type=int, default=8, help="knots of the coefficients free in σ")
     p.add_argument(
+        "--log-knots",
+        action="store_true",
+        help="knots evenly spaced in log σ over the visited range (default: at quantiles of the visited σ)",
+    )
+    p.add_argument(
         "--window", type=int, default=0, help="cut the tracks into windows of this many samples (0: whole)"
     )
     p.add_argument(
@@ -261,7 +307,15 @@ def main() -> None:
         action="store_true",
         help="each window's start known to the import's position noise and velocity error",
     )
+    p.add_argument(
+        "--flow-bumps",
+        type=int,
+        default=0,
+        help="the flow free besides in K×K Gaussian stream-function bumps over the training box (0: none)",
+    )
     args = p.parse_args()
+    if args.flow_bumps < 0:
+        raise SystemExit("--flow-bumps must be 0 or more")
     if args.window < 0 or args.window in (1, 2) or (args.start_prior and not args.window):
         raise SystemExit("--window must be 0 or at least 3 samples; --start-prior needs --window")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -293,6 +347,14 @@ def main() -> None:
     )
     share = quad / drag
     knots = np.quantile(points[:, 1], np.linspace(0.0, 1.0, args.knots))
+    if args.log_knots:  # as much freedom per decade of σ at the slowest speeds as at the fastest
+        knots = np.geomspace(knots[0], knots[-1], args.knots)
+    bumps = None
+    if args.flow_bumps:  # K×K centres spanning the training box, each as wide as their spacing
+        bx, by, _ = flow_box(scored, n=args.flow_bumps)
+        gx, gy = np.meshgrid(bx, by)
+        spacing = max(bx[1] - bx[0], by[1] - by[0]) if args.flow_bumps > 1 else float(np.ptp(bx))
+        bumps = (np.column_stack([gx.ravel(), gy.ravel()]), float(spacing))
     starts, forcing, grids, observed = pieces(states[ids], actuation[ids], ts, rows, args.window)
     prior = None
     if args.start_prior:  # the start's errors as fhnn train's multi-step loss weighs them
@@ -304,6 +366,7 @@ def main() -> None:
         "start_prior": None if prior is None else prior.tolist(),
         "forcing": not args.no_forcing,
         "noise": args.noise,
+        "flow_bumps": args.flow_bumps,
         "trajectories": len(ids),
         "observations": int(sum(len(r) for r in rows)),
         "families": {},
@@ -319,17 +382,20 @@ def main() -> None:
         )
     )
     for family in FAMILIES:
-        build, names = parametrised(truth, family, knots)
+        build, names = parametrised(truth, family, knots, bumps)
         info = fisher(build, len(names), starts, forcing, grids, observed, prior) / args.noise**2
         cov, dropped = bound(info)
+        # the masses are not determined where a direction is lost (without forcing); with bumps, those
+        # far from every track are lost too, so there it is the forcing that says
+        masses_lost = args.no_forcing if bumps is not None else bool(dropped)
         d = derived(build, names, cov, jnp.asarray(points), body)
         pp = d["per_point"]
-        cq, dg = ("c_q", "drag") if not dropped else ("c_q/(M+m_ax)", "drag/(M+m_ax)")
+        cq, dg = ("c_q", "drag") if not masses_lost else ("c_q/(M+m_ax)", "drag/(M+m_ax)")
         res = {
             "parameters_sd": d["parameters"],
             "not_identifiable_directions": dropped,
             "mean_sd": {
-                k: float(np.mean(v)) for k, v in pp.items() if k != "c_q" and (not dropped or "/" in k)
+                k: float(np.mean(v)) for k, v in pp.items() if k != "c_q" and (not masses_lost or "/" in k)
             },
             # without forcing the masses are not identifiable: c_q and the drag over M + m_ax instead
             "by_sigma_quantities": [cq, dg],
@@ -347,10 +413,13 @@ def main() -> None:
         out["families"][family] = res
         sd = {**res["parameters_sd"], **res["mean_sd"]}
         print(
-            f"\n{family}: {len(names)} parameters ({', '.join(names)}), "
+            f"\n{family}: {len(names)} parameters ({', '.join(n for n in names if not n.startswith('bump'))}"
+            + (f" and {len(bumps[0])} bumps" if bumps else "")
+            + "), "
             f"{dropped} direction(s) not identifiable"
+            + (f"; the flow free besides in {args.flow_bumps}×{args.flow_bumps} bumps" if bumps else "")
         )
-        alone = f"m_ax {sd['m_ax']:.3%}, m_ay {sd['m_ay']:.3%}, c_l {sd['c_l']:.3%}, " if not dropped else ""
+        alone = "" if masses_lost else f"m_ax {sd['m_ax']:.3%}, m_ay {sd['m_ay']:.3%}, c_l {sd['c_l']:.3%}, "
         print(
             "  relative sd (1σ; of a function of σ: its mean over the visited points): "
             f"{alone}Γ {sd['gamma']:.3%}, r_c {sd['r_c']:.3%}; "
@@ -363,6 +432,8 @@ def main() -> None:
                 f"{b['c_q_sd_max']:.2%} (±{LEVEL_Z * b['c_q_sd_max']:.1%}); {b['drag_sd_max']:.3%}"
             )
     cut = (f"_window{args.window}" if args.window else "") + ("_prior" if prior is not None else "")
+    cut += f"_bumps{args.flow_bumps}" if args.flow_bumps else ""
+    cut += f"_logknots{args.knots}" if args.log_knots else ""
     path = args.out / f"bound_seed{args.data_seed}{data_suffix(args.no_forcing, args.noise)}{cut}.json"
     path.write_text(json.dumps(out, indent=1))
     print(f"\nwrote {path}")

@@ -216,8 +216,9 @@ def data_settings(dataset: Dataset) -> dict[str, Any]:
       → 0.46 %, held-out ``fhnn predict`` 1.47 → 1.17 mm, but the validation forecast 2.29 →
       2.85 mm (``own_data_seed2_tracks{0,20}.json``) — from each track's first second; from an
       origin every 2 s (98 forecasts) 2.450 → 2.498 mm, and 2.241 → 2.201 / 2.373 → 2.213 mm on
-      seeds 0 / 1. It costs about 18 s an iteration here, at most ``train.track_samples``
-      samples held (:func:`~fhnn.training.tracks.track_pieces`) on larger data.
+      seeds 0 / 1 (``own_data{,_seed1,_seed2}_tracks{0,20}.json``). It costs about 18 s an
+      iteration here, at most ``train.track_samples`` samples held
+      (:func:`~fhnn.training.tracks.track_pieces`) on larger data.
 
     Tried on that data and not taken (the validation loss or forecast decides; numbers in issue
     14's notes): windows of 80 samples in batches of 16 (before the weighting, at the same cost:
@@ -231,7 +232,10 @@ def data_settings(dataset: Dataset) -> dict[str, Any]:
     in batches of 16 or 32, of 160 in batches of 8 (validation forecast at 5 s 2.20, 2.69, 2.48
     against 2.24 mm; ``c_l`` 7.2, 6.9, 16 % off against 2.2 %), and start errors drifting as the
     model carries them (``train.shoot_drift="model"``: 2.13 mm, and 2.27 against 2.30 mm on data
-    seed 1, at twice the cost of a step; ``c_l`` 2.8 and 8.5 % off).
+    seed 1, at twice the cost of a step; ``c_l`` 2.8 and 8.5 % off). With the whole-track fit:
+    both nets 32 wide instead of the model's 64 (``model.width=32``, data seed 0,
+    ``docs/benchmarks/own_data_modelwidth32.json``): validation forecast from 98 origins 2.28
+    against 2.20 mm at 5 s, ``c_l`` 5.0 against 2.1 % off, in 200 against 538 s.
     """
     out: dict[str, Any] = {}
     if "derivatives" not in dataset.measured:
