@@ -19,7 +19,7 @@ from fhnn.physics.actuation import forcing
 from fhnn.physics.integrators import rk4_solve
 from fhnn.training import tracks as track_module
 from fhnn.training.run import Run, RunConfig
-from fhnn.training.tracks import TrackFit, track_pieces
+from fhnn.training.tracks import ForecastScore, TrackFit, origin_pieces, track_pieces
 from fhnn.training.trainer import TrainConfig
 
 from .conftest import arrays, small_dataset
@@ -138,12 +138,15 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     assert [r["step"] for r in tracks] == [5, 6] or (state.stopped and "whole-track" in state.stopped)
     assert all(r["track_mean_square"] > 0 and "val_total" in r for r in tracks)
     assert np.all(np.diff([r["track_mean_square"] for r in tracks]) < 0)
-    # the validation tracks choose: the iterate that fits them best, where better than the start
-    held_out = [tracks[0]["val_track_mean_square_start"]] + [r["val_track_mean_square"] for r in tracks]
-    best = int(np.argmin(held_out))
-    if best > 0:
-        assert state.best_val == tracks[best - 1]["val_total"]
-        if best == len(tracks):  # the last iterate: the run's model is its best
+    # the forecasts guard: the last iterate that forecasts the validation tracks no worse than
+    # the phase's start is kept (3 s tracks: one forecast each, from the first sample)
+    guard = tracks[0]["val_forecast_start"]
+    assert tracks[0]["val_forecasts"] == ds.val.n_traj and np.isfinite(guard)
+    assert all(np.isfinite(r["val_forecast"]) and r["val_track_mean_square"] > 0 for r in tracks)
+    passing = [k for k, r in enumerate(tracks) if r["val_forecast"] <= guard]
+    if passing:
+        assert state.best_val == tracks[passing[-1]]["val_total"]
+        if passing[-1] == len(tracks) - 1:  # the last iterate: the run's model is its best
             for a, b in zip(arrays(state.best_model), arrays(state.model), strict=True):
                 np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     else:
@@ -193,3 +196,51 @@ def test_track_pieces_cover_every_sample_once_and_keep_to_the_budget(monkeypatch
     assert seven.n_traj == 7 and set(parent) == set(range(5))
     with pytest.raises(ConfigError, match="track_samples"):
         TrainConfig(track_samples=0)
+
+
+def test_origin_pieces_start_at_each_origin_and_mark_their_history(monkeypatch):
+    """A forecast piece from an origin every ``ORIGIN_EVERY`` s of each track: its samples are
+    the track's own from that origin's sample on, up to history + ahead after it; the history
+    mask holds those within ``ORIGIN_HISTORY`` s; a track too short to have a sample beyond a
+    history gives none; a budget keeps as many pieces as fit; no piece at all is said."""
+    monkeypatch.setattr(track_module, "ORIGIN_EVERY", 0.5)
+    monkeypatch.setattr(track_module, "ORIGIN_HISTORY", 0.3)
+    monkeypatch.setattr(track_module, "ORIGIN_AHEAD", 0.6)
+    ds = small_dataset("steady_vortex", n_traj=10, duration=3.0)
+    sp = ds.train.subset(np.arange(3))
+    sp = dataclasses.replace(sp, t=np.asarray(sp.times).copy(), lengths=np.asarray([61, 25, 4]))
+    step = sp.times[0, 1] - sp.times[0, 0]
+    pieces, history = origin_pieces(sp, 10**6, seed=0)
+    counts = [0, 0, 0]
+    for j in range(pieces.n_traj):
+        n = pieces.sample_counts[j]
+        i = int(np.flatnonzero(np.isclose(sp.states[:, :, 0], pieces.states[j, 0, 0]).any(axis=1))[0])
+        a = int(np.flatnonzero(np.isclose(sp.times[i], pieces.times[j, 0]))[0])
+        counts[i] += 1
+        assert np.isclose((pieces.times[j, 0] - sp.times[i, 0]) % 0.5, 0.0, atol=1e-9) or np.isclose(
+            (pieces.times[j, 0] - sp.times[i, 0]) % 0.5, 0.5, atol=1e-9
+        )
+        np.testing.assert_array_equal(pieces.states[j, :n], sp.states[i, a : a + n])
+        assert pieces.times[j, n - 1] <= pieces.times[j, 0] + 0.9 + 1e-9
+        assert pieces.times[j, n - 1] > pieces.times[j, 0] + 0.3
+        np.testing.assert_array_equal(history[j, :n], pieces.times[j, :n] <= pieces.times[j, 0] + 0.3 + 1e-9)
+        assert not history[j, n:].any()
+    # track 0: 3 s, origins at 0, 0.5, … 2.5 s with a sample beyond 0.3 s after; track 1: 1.2 s
+    assert counts == [len(np.arange(0, 60 * step - 0.3, 0.5)), len(np.arange(0, 24 * step - 0.3, 0.5)), 0]
+    few, _ = origin_pieces(sp, 2 * pieces.n_times, seed=1)
+    assert few.n_traj == 2
+    short = dataclasses.replace(sp, lengths=np.asarray([4, 4, 4]))
+    _, none = origin_pieces(short, 10**6, seed=0)
+    assert none.shape[0] == 0
+
+
+def test_the_forecast_score_is_zero_at_the_truth(setting):
+    """On tracks observed exactly under the truth, the forecast score (start states fitted to
+    each history) vanishes at the truth's parameters and not at the model's."""
+    model, free, truth, exact = setting
+    score = ForecastScore(model, free, exact, 10**6, seed=0)
+    assert score.n_forecasts == exact.n_traj  # 3 s tracks: one origin each
+    truth_theta = ravel_pytree(eqx.partition(truth, free)[0])[0]
+    model_theta = ravel_pytree(eqx.partition(model, free)[0])[0]
+    assert score(truth_theta) < 1e-8
+    assert score(model_theta) > 1e-5

@@ -52,6 +52,10 @@ DAMPING_MAX = 1e8
 #: (:func:`track_pieces`): 25 s at 0.05 s, longer than issue 14's 20 s tracks, on which the
 #: split was found.
 TRACK_PIECE = 500
+#: The validation forecasts that choose the fit's iterate (:class:`ForecastScore`): an origin
+#: every ``ORIGIN_EVERY`` s of each track, a start state fitted to ``ORIGIN_HISTORY`` s from it,
+#: scored over the ``ORIGIN_AHEAD`` s after — ``benchmarks/own_data.py``'s validation forecast.
+ORIGIN_EVERY, ORIGIN_HISTORY, ORIGIN_AHEAD = 2.0, 1.0, 5.0
 
 
 @dataclass
@@ -74,10 +78,17 @@ class TrackFit:
         split: the tracks; each rolled out from a fitted start state over its own sample times.
         weights: each track's weight ``(N,)`` in the sum of squares (default: 1 each; a
             bootstrap member's trajectory weights, :func:`~fhnn.training.trainer.bootstrap_weights`).
+        mask: the samples that count ``(N, T)`` (default: the split's real samples; a subset of
+            them scores a part of each track, as :class:`ForecastScore` does).
     """
 
     def __init__(
-        self, model: AbstractVectorField, free: object, split: Split, weights: np.ndarray | None = None
+        self,
+        model: AbstractVectorField,
+        free: object,
+        split: Split,
+        weights: np.ndarray | None = None,
+        mask: np.ndarray | None = None,
     ) -> None:
         params, self._static = eqx.partition(model, free)
         theta, self._unravel = ravel_pytree(params)
@@ -85,12 +96,12 @@ class TrackFit:
         self.p = int(theta.size)
         self._t = jnp.asarray(split.times)
         self._obs = jnp.asarray(split.states[..., :2])
-        self._mask = jnp.asarray(split.mask)
+        self._mask = jnp.asarray(split.mask if mask is None else mask & split.mask)
         w = np.ones(split.n_traj) if weights is None else np.asarray(weights, dtype=float)
         self._root_w = jnp.asarray(np.sqrt(w))
         self._act = jnp.asarray(split.actuation)
         self._res = jnp.asarray(split.force_residual)
-        self.n = 2 * int(split.mask.sum())
+        self.n = 2 * int(np.asarray(self._mask).sum())
         self.n_tracks = split.n_traj
         #: Each track's start state ``(N, 4)``: the split's first state, refined by the fit.
         self.z = jnp.asarray(split.states[:, 0])
@@ -119,6 +130,10 @@ class TrackFit:
         self.z = self._fit_starts(4)
         self.value = self._total_cost(self.theta, self.z)
         return self.mean_square
+
+    def sum_of_squares(self, theta: Array, z: Array) -> float:
+        """The objective [m²] at the model's parameters ``theta`` and start states ``z`` ``(N, 4)``."""
+        return self._total_cost(jnp.asarray(theta), jnp.asarray(z))
 
     def _tracks(self, rows: slice) -> tuple[Array, ...]:
         return (
@@ -241,17 +256,24 @@ def track_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarra
     rounds = range(max(map(len, pieces)))  # round r: each track's r-th piece, tracks in ``order``
     ranked = [pieces[i][r] for r in rounds for i in order if r < len(pieces[i])]
     kept = sorted(ranked[: max(1, budget // longest)])
+    return _pieces(split, kept), np.asarray([i for i, _, _ in kept])
+
+
+def _pieces(split: Split, kept: list[tuple[int, int, int]]) -> Split:
+    """The samples ``a … b−1`` of track ``i`` of ``split`` for each ``(i, a, b)`` of ``kept``, as
+    a :class:`~fhnn.data.dataset.Split` padded as a split is (absolute times, going on at the
+    piece's mean step past its end; the rest repeating its last sample)."""
     times = split.times
     index = np.asarray([i for i, _, _ in kept])
     lengths = np.asarray([b - a for _, a, b in kept])
-    # padding as Split's: times go on increasing at the piece's mean step, the rest repeats its last sample
+    longest = int(lengths.max())
     pad = np.minimum(np.arange(longest)[None, :], lengths[:, None] - 1)
     rows = np.asarray([a for _, a, _ in kept])[:, None] + pad
     t = times[index[:, None], rows]
     step = np.asarray([max((times[i, b - 1] - times[i, a]) / max(b - a - 1, 1), 1e-9) for i, a, b in kept])
     t = t + np.maximum(np.arange(longest)[None, :] - (lengths[:, None] - 1), 0) * step[:, None]
     take = lambda x: x[index[:, None], rows]  # noqa: E731
-    piece_split = Split(
+    return Split(
         t=t,
         states=take(split.states),
         states_clean=take(split.states_clean),
@@ -260,7 +282,70 @@ def track_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarra
         actuation=split.actuation[index],
         lengths=lengths,
     )
-    return piece_split, index
+
+
+def origin_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarray]:
+    """Forecast pieces of ``split``'s tracks: from an origin every :data:`ORIGIN_EVERY` s of each
+    track (its first sample, then the first sample at or after each further step), the samples
+    up to :data:`ORIGIN_HISTORY` + :data:`ORIGIN_AHEAD` s after it, where at least one sample
+    lies beyond the history. Where they hold more than ``budget`` samples (pieces × the longest
+    piece's length), a seeded subset of the origins is kept. Returns the pieces as a
+    :class:`~fhnn.data.dataset.Split` and each piece's history mask ``(N', T')`` (its samples
+    within :data:`ORIGIN_HISTORY` s of the origin); empty where no track has such an origin.
+
+    Args:
+        split: the tracks.
+        budget: the most samples the pieces may hold (≥ 1).
+        seed: seed of the subset kept.
+    """
+    span = ORIGIN_HISTORY + ORIGIN_AHEAD
+    found = []  # (track, first, end, origin time)
+    for i, n in enumerate(split.sample_counts):
+        t = split.times[i, :n]
+        for origin in np.arange(t[0], t[-1] - ORIGIN_HISTORY, ORIGIN_EVERY):
+            a = int(np.searchsorted(t, origin - 1e-9))
+            b = int(np.searchsorted(t, t[a] + span + 1e-9))
+            if t[b - 1] > t[a] + ORIGIN_HISTORY + 1e-9:
+                found.append((i, a, b))
+    if not found:
+        return split, np.zeros((0, 0), dtype=bool)
+    longest = max(b - a for _, a, b in found)
+    if len(found) * longest > budget:
+        pick = np.random.default_rng(seed).choice(len(found), max(1, budget // longest), replace=False)
+        found = [found[k] for k in np.sort(pick)]
+    pieces = _pieces(split, found)
+    history = pieces.mask & (pieces.times <= pieces.times[:, :1] + ORIGIN_HISTORY + 1e-9)
+    return pieces, history
+
+
+class ForecastScore:
+    """How well a model forecasts held-out tracks as ``fhnn predict --history`` does: from each
+    piece of :func:`origin_pieces`, the start state fitted to its first :data:`ORIGIN_HISTORY` s
+    (four Gauss–Newton steps with the model held, from the last fit's), the RMS position error
+    [m] over the :data:`ORIGIN_AHEAD` s after (``sqrt`` of the mean of ``|Δx|²``).
+
+    Args:
+        model: a model of the structure scored; ``free`` as :class:`TrackFit`'s.
+        split: the held-out tracks.
+        budget, seed: as :func:`origin_pieces`.
+    """
+
+    def __init__(
+        self, model: AbstractVectorField, free: object, split: Split, budget: int, seed: int
+    ) -> None:
+        pieces, history = origin_pieces(split, budget, seed)
+        self.n_forecasts = history.shape[0]
+        if self.n_forecasts:
+            self._history = TrackFit(model, free, pieces, mask=history)
+            self._ahead = TrackFit(model, free, pieces, mask=~history)
+
+    def __call__(self, theta: Array) -> float:
+        """The score at the model's parameters ``theta`` (NaN without forecasts)."""
+        if not self.n_forecasts:
+            return float("nan")
+        self._history.rescore(theta)
+        squares = self._ahead.sum_of_squares(theta, self._history.z)
+        return float(np.sqrt(2.0 * squares / self._ahead.n))
 
 
 def _programs(static: object, unravel: Callable[[Array], object]) -> tuple[Callable[..., Array], ...]:

@@ -58,7 +58,7 @@ from fhnn.data.windows import LossScales, Windows
 from fhnn.errors import ConfigError
 from fhnn.executables import StoredProgram
 from fhnn.models.base import AbstractModel
-from fhnn.training.tracks import TrackFit, track_pieces
+from fhnn.training.tracks import ForecastScore, TrackFit, track_pieces
 
 Array = jax.Array
 
@@ -612,11 +612,14 @@ class Trainer:
 
         Each iterate is recorded with ``track_mean_square``, the mean square position residual
         per axis [m²] on the training tracks, ``val_track_mean_square``, the same on the
-        validation tracks (their start states fitted to each iterate), and the validation
-        windows' terms. The validation tracks choose: an iterate becomes the best model where
-        they fit it better than the phase's start and every earlier iterate (``best_val`` is
-        then its validation windows' loss), since the windows hold little of what this phase
-        fits. A resumed run starts the phase again from its best model with the iterations left;
+        validation tracks (their start states fitted to each iterate), ``val_forecast``, the RMS
+        position error [m] of forecasts of the validation tracks (:class:`ForecastScore`: from an
+        origin every 2 s, 1 s of history, 5 s ahead, as ``fhnn predict`` forecasts), and the
+        validation windows' terms. The fit's own objective chooses, the forecasts guard: each
+        iterate becomes the best model if it forecasts the validation tracks no worse than the
+        phase's start (``best_val`` is then its validation windows' loss, which hold little of
+        what this phase fits), so the phase ends at its last such iterate. A resumed run starts
+        the phase again from its best model with the iterations left;
         an iteration that no damping makes descend, or the time budget spent, ends the phase; a
         model without :meth:`~fhnn.models.base.AbstractModel.track_parameters` skips it."""
         cfg = self.config
@@ -634,7 +637,8 @@ class Trainer:
             weights = bootstrap_weights(np.arange(n_tracks), n_tracks, cfg.seed)[parent]
         fit = TrackFit(start, free, split, weights)
         held_out = TrackFit(start, free, track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0])
-        chosen = held_out.mean_square
+        forecasts = ForecastScore(start, free, self.val_split, cfg.track_samples, cfg.seed + 7)
+        guard = forecasts(fit.theta)
         done = self.total_steps - left
         for k in range(left):
             result = fit.step()
@@ -649,18 +653,21 @@ class Trainer:
                 break
             record: dict[str, Any] = {"step": done, "phase": "tracks", "iteration": k + 1}
             if k == 0:
-                record["val_track_mean_square_start"] = chosen
+                record["val_track_mean_square_start"] = held_out.mean_square
+                record["val_forecast_start"] = guard
                 record["tracks"] = fit.n_tracks  # tracks (or pieces of them) in the fit
                 record["val_tracks"] = held_out.n_tracks
+                record["val_forecasts"] = forecasts.n_forecasts
             record["track_mean_square"] = result.mean_square
             record["val_track_mean_square"] = held_out.rescore(fit.theta)
+            record["val_forecast"] = forecasts(fit.theta)
             record["damping"] = result.damping
             val = self.validate(result.model)
             record.update({f"val_{name}": v for name, v in val.items()})
             state.history.append(record)
             state.model, state.step = result.model, done
-            if record["val_track_mean_square"] < chosen:
-                chosen = record["val_track_mean_square"]
+            # no forecasts (every validation track shorter than a history): the objective alone
+            if np.isnan(guard) or record["val_forecast"] <= guard:
                 state.best_model, state.best_val = result.model, val["total"]
             late = None if k + 1 == left else self._over_budget("tracks", k + 1, left, "the whole-track fit")
             if late is not None:
