@@ -27,8 +27,8 @@ Four phases:
    float64 it lowers the loss far below Adam's noise floor.
 4. Whole-track fit (``track_steps`` Levenberg–Marquardt iterations, :mod:`fhnn.training.tracks`)
    from the best model so far: every training track at once from a fitted start state, on the
-   parameters the model names; an iterate is kept only where the validation tracks, their start
-   states fitted to it, fit it better than the phase's start and every earlier iterate.
+   parameters the model names; it ends at its last iterate that forecasts the validation tracks
+   (from an origin every 2 s, 1 s of history, 5 s ahead) no worse than the phase's start.
 
 The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` windows (the data
 terms, no regulariser), drawn from those starting every ``lbfgs_stride`` samples, with L-BFGS
