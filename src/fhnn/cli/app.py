@@ -644,6 +644,8 @@ def _progress_callback(bar: Progress, task: Any) -> Any:
             else f"train {record['train_loss']:.1e}"
         )
         losses = f"{fit} val {record['val_total']:.1e}"
+        if math.isfinite(record.get("val_forecast", math.nan)):  # the whole-track fit's guard
+            losses = f"{fit} val forecast {record['val_forecast'] * 1e3:.2f} mm"
         bar.update(task, completed=state.step, losses=losses)
 
     return progress
