@@ -131,9 +131,18 @@ class TrackFit:
         self.value = self._total_cost(self.theta, self.z)
         return self.mean_square
 
-    def sum_of_squares(self, theta: Array, z: Array) -> float:
-        """The objective [m²] at the model's parameters ``theta`` and start states ``z`` ``(N, 4)``."""
-        return self._total_cost(jnp.asarray(theta), jnp.asarray(z))
+    def sum_of_squares(self, theta: Array, z: Array, mask: Array | None = None) -> float:
+        """The objective [m²] at the model's parameters ``theta`` and start states ``z`` ``(N, 4)``,
+        over the samples ``mask`` ``(N, T)`` where given (another part of the same tracks, as
+        :class:`ForecastScore` scores the forecasts after the histories it fits)."""
+        theta, z = jnp.asarray(theta), jnp.asarray(z)
+        if mask is None:
+            return self._total_cost(theta, z)
+        total = 0.0
+        for b in self._batches():
+            t, act, res, _, obs, root_w = self._tracks(b)
+            total += float(self._cost(theta, z[b], t, act, res, mask[b], obs, root_w))
+        return total
 
     def _tracks(self, rows: slice) -> tuple[Array, ...]:
         return (
@@ -299,7 +308,7 @@ def origin_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarr
         seed: seed of the subset kept.
     """
     span = ORIGIN_HISTORY + ORIGIN_AHEAD
-    found = []  # (track, first, end, origin time)
+    found = []  # (track, first sample, end sample)
     for i, n in enumerate(split.sample_counts):
         t = split.times[i, :n]
         for origin in np.arange(t[0], t[-1] - ORIGIN_HISTORY, ORIGIN_EVERY):
@@ -337,15 +346,16 @@ class ForecastScore:
         self.n_forecasts = history.shape[0]
         if self.n_forecasts:
             self._history = TrackFit(model, free, pieces, mask=history)
-            self._ahead = TrackFit(model, free, pieces, mask=~history)
+            ahead = ~history & pieces.mask
+            self._ahead, self._n_ahead = jnp.asarray(ahead), int(ahead.sum())
 
     def __call__(self, theta: Array) -> float:
         """The score at the model's parameters ``theta`` (NaN without forecasts)."""
         if not self.n_forecasts:
             return float("nan")
         self._history.rescore(theta)
-        squares = self._ahead.sum_of_squares(theta, self._history.z)
-        return float(np.sqrt(2.0 * squares / self._ahead.n))
+        squares = self._history.sum_of_squares(theta, self._history.z, self._ahead)
+        return float(np.sqrt(squares / self._n_ahead))
 
 
 def _programs(static: object, unravel: Callable[[Array], object]) -> tuple[Callable[..., Array], ...]:
