@@ -414,6 +414,11 @@ def test_coefficients_held_outside_the_training_radii():
     np.testing.assert_array_equal(at(held, 0.0), at(held, lo))
     np.testing.assert_array_equal(at(held, 0.5 * (lo + hi)), at(free, 0.5 * (lo + hi)))
     assert not np.allclose(at(free, 5 * hi), at(free, hi))
+    # coefficients_in_r=False: functions of σ alone, the same net at r = 0 otherwise
+    flat = MODELS["fhnn"].make(FHNNConfig(width=8, coefficients_in_r=False), args, 0).coefficients
+    for r in (lo, 0.5 * (lo + hi), 5 * hi):
+        np.testing.assert_array_equal(at(flat, r), at(free, 0.0))
+    assert not np.allclose(at(flat, 0.2), np.asarray(flat(jnp.asarray(0.2), jnp.asarray(0.05))))
 
 
 def test_training_phase_settings_are_checked():

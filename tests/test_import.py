@@ -589,6 +589,17 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert "are NOT determined by the data" in said and "c_l/(M+m_ax)" in said
     assert "drag/(M+m_ax)" in said and "drag/(M + m_a) most tightly" in said
     assert "the data fix their sum" not in said  # unforced, the total drag is not determined either
+    # trained on them, the masses are held constant: a gauge the data leave free, said so
+    with pytest.raises(SystemExit) as info:
+        main(
+            ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run"), "--steps", "2"]
+            + ["--set", "train.shoot=8", "--set", "train.track_steps=1"]
+        )
+    assert info.value.code == 0
+    said = " ".join(capsys.readouterr().err.split())
+    assert "no known forcing: the added masses are not identifiable, only c/(M + m_a); training with " in said
+    assert "model.added_mass=constant (--set wins)" in said
+    assert Run.load(folder / "unforced_run").config.model.added_mass == "constant"
     coefficients = read_csv_columns(run / "coefficients.csv")
     assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l", "drag"]
     assert coefficients["r"].size > 50 and np.all(coefficients["m_ax"] > 0)
@@ -1117,6 +1128,47 @@ def test_without_forcing_only_the_drag_to_inertia_ratios_are_determined() -> Non
         [[3.0 / 15, 3.0 / 20, 0.4 / 15, 0.4 / 20, drag / 15, drag / 20]],
         rtol=1e-15,
     )
+
+
+def test_without_forcing_fhnn_trains_constant_added_masses() -> None:
+    """Unforced motion of a body without a Morison force sees only c/(M + m_a); masses free in
+    (r, σ) would let that gauge vary with σ and the drag split with it, so ``fhnn train`` holds
+    them constant there, and only there."""
+    import dataclasses
+
+    from fhnn.models.fhnn import FHNNConfig, fhnn_arguments
+    from fhnn.models.registry import MODELS
+
+    unforced = small_dataset("steady_vortex", actuation="none")
+    forced = small_dataset("steady_vortex")
+    assert not unforced.known_forcing and unforced.masses_are_gauge
+    assert forced.known_forcing and not forced.masses_are_gauge
+    assert data_settings(unforced)["model.added_mass"] == "constant"
+    assert "model.added_mass" not in data_settings(forced)
+    assert "model.added_mass" not in data_settings(unforced, "dhn")  # FHNN's setting only
+    # a Morison force on a body that is not neutrally buoyant carries the masses apart from the drag
+    body = unforced.constants()
+    heavy = dataclasses.replace(
+        unforced, body_params={**unforced.body_params, "fluid_inertia": True, "M": 2 * body["M"]}
+    )
+    neutral = dataclasses.replace(unforced, body_params={**unforced.body_params, "fluid_inertia": True})
+    assert not heavy.masses_are_gauge and neutral.masses_are_gauge
+    # the constant masses: the same at every (r, σ), learned, and moved by the whole-track fit
+    model = MODELS["fhnn"].make(FHNNConfig(width=8, added_mass="constant"), fhnn_arguments(unforced), 0)
+    net = MODELS["fhnn"].make(FHNNConfig(width=8), fhnn_arguments(unforced), 0)
+    points = jnp.array([[0.5, 0.01], [2.0, 0.3], [4.0, 1.5]])
+    coef = jax.vmap(model.coefficients)(points[:, 0], points[:, 1])
+    np.testing.assert_allclose(coef[:, :2], np.full((3, 2), 10.0), rtol=1e-12)  # init_coefficients
+    assert np.ptp(np.asarray(coef[:, 2])) > 0  # c_q still a function
+    assert np.ptp(np.asarray(jax.vmap(net.coefficients)(points[:, 0], points[:, 1])[:, 0])) > 0
+    grad = eqx.filter_grad(
+        lambda m: jnp.sum(jax.vmap(m.coefficients)(points[:, 0], points[:, 1])[:, :2] ** 2)
+    )
+    g = grad(model)
+    assert np.all(np.abs(np.asarray(g.eom.coefficients.mass_raw)) > 0)
+    np.testing.assert_array_equal(g.eom.coefficients.mlp.layers[-1].bias[:2], 0.0)  # the net's rows unused
+    free = model.track_parameters()
+    assert free.eom.coefficients.mass_raw is True and net.track_parameters().eom.coefficients.mass_raw is None
 
 
 def test_predict_keeps_the_clock_of_the_imported_table(tmp_path, capsys, monkeypatch) -> None:

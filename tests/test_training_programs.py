@@ -275,10 +275,11 @@ def test_commands_compilation_cache_folder(tmp_path, monkeypatch):
     assert default_cache_dir() is None  # cannot be created: no cache, no error
 
 
-def test_lr_c_l_scales_only_the_constant_linear_drags_step(data):
-    """``train.lr_c_l = K``: Adam's first update of ``c_l_raw`` is K times the plain one (Adam's
-    first step is the rate times g/(|g| + ε)), every other parameter's is identical."""
-    model = fresh(data)
+def test_lr_c_l_scales_only_the_constant_coefficients_steps(data):
+    """``train.lr_c_l = K``: Adam's first update of ``c_l_raw`` and of constant added masses'
+    ``mass_raw`` is K times the plain one (Adam's first step is the rate times g/(|g| + ε)),
+    every other parameter's is identical."""
+    model = fresh(data, added_mass="constant")
     updates = {}
     for k in (1.0, 7.0):
         config = TrainConfig(steps=10, batch_size=16, lr_c_l=k)
@@ -292,7 +293,12 @@ def test_lr_c_l_scales_only_the_constant_linear_drags_step(data):
     c_l = lambda u: float(u.eom.coefficients.c_l_raw)  # noqa: E731
     assert abs(c_l(updates[1.0])) > 1e-4  # it moved, by about the rate (3e-3)
     assert c_l(updates[7.0]) == pytest.approx(7.0 * c_l(updates[1.0]), rel=1e-9)
-    rest = lambda u: eqx.tree_at(lambda m: m.eom.coefficients.c_l_raw, u, np.zeros(()))  # noqa: E731
+    masses = lambda u: np.asarray(u.eom.coefficients.mass_raw)  # noqa: E731
+    assert np.all(np.abs(masses(updates[1.0])) > 1e-4)
+    np.testing.assert_allclose(masses(updates[7.0]), 7.0 * masses(updates[1.0]), rtol=1e-9)
+    rest = lambda u: eqx.tree_at(  # noqa: E731
+        lambda m: (m.eom.coefficients.c_l_raw, m.eom.coefficients.mass_raw), u, (np.zeros(()), np.zeros(2))
+    )
     for a, b in zip(arrays(rest(updates[1.0])), arrays(rest(updates[7.0])), strict=True):
         np.testing.assert_array_equal(a, b)
     with pytest.raises(ConfigError, match="lr_c_l must be > 0, got 0.0"):

@@ -455,13 +455,18 @@ def train(
         settings = {**get_plan(plan).settings(kind, noisy=is_noisy(dataset)), **settings}
     # a new run without --plan starts from the default plan; a resumed run keeps what it stored
     start = default_settings(dataset, kind) if plan is None else {}
-    implied = {k: v for k, v in data_settings(dataset).items() if k not in given}
+    implied = {k: v for k, v in data_settings(dataset, kind).items() if k not in given}
     before = RunConfig().with_settings({**start, **settings})
     settings = {**settings, **implied}
     config = RunConfig().with_settings({**start, **settings})
     # what the data's estimated fields call for (below any setting given) and changes
     said = {k: v for k, v in implied.items() if get_setting(before, k) != get_setting(config, k)}
     notes = []  # said once the runs are open and their data checked: bad input stays one line
+    if "model.added_mass" in said:
+        notes.append(
+            f"{data}: no known forcing: the added masses are not identifiable, only c/(M + m_a); "
+            f"training with model.added_mass={said.pop('model.added_mass')} (--set wins)"
+        )
     if said:
         estimated = [f for f in ("velocities", "derivatives") if f not in dataset.measured]
         with_ = ", ".join(f"{k}={v}" for k, v in said.items())
@@ -1010,12 +1015,6 @@ def _exports(model: Any, dataset: Any, run_dir: Path) -> list[Path]:
     ]
 
 
-def _known_forcing(dataset: Any) -> bool:
-    """Whether the training data carry measured, non-zero external forces: only then are the
-    added masses and drag coefficients determined, not just their ratios c/(M + m_a)."""
-    return "forces" in dataset.measured and bool(np.any(dataset.train.forces[dataset.train.mask] != 0))
-
-
 def _drag_note(sigma_min: float) -> str:
     """What data with known forcing say about c_q and c_l apart (printed under the coefficients;
     without known forcing the note on the ratios c/(M + m_a) stands instead)."""
@@ -1056,7 +1055,7 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
         f"{_fmt(cov['sigma_max'])} m/s; no ground truth: these are estimates, not recovery errors",
         soft_wrap=True,
     )
-    forced = _known_forcing(dataset)
+    forced = dataset.known_forcing
     if forced:
         stdout.print(_drag_note(cov["sigma_min"]), soft_wrap=True)
     else:
@@ -1093,7 +1092,7 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
         write_coefficients_csv([m.eom for m in models], dataset, folder / "coefficients.csv"),
         write_flow_netcdf([m.flow for m in models], dataset, folder / "flow.nc"),
     ]
-    forced = _known_forcing(dataset)
+    forced = dataset.known_forcing
     # identifiability from the spread: without known forces inertia and drag scale together, so
     # the members agree on the ratios c/(M + m_a) far better than on the masses themselves
     mass_width = max(rows[n]["rel_width"] for n in ("m_ax", "m_ay"))

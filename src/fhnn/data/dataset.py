@@ -235,6 +235,23 @@ class Dataset:
             "fluid_inertia": bool(p.get("fluid_inertia", False)),
         }
 
+    @property
+    def known_forcing(self) -> bool:
+        """Whether the training data carry measured, non-zero external forces: only then are the
+        added masses and drag coefficients determined, not just their ratios ``c / (M + m_a)``."""
+        train = self.train
+        return "forces" in self.measured and bool(np.any(train.forces[train.mask] != 0))
+
+    @property
+    def masses_are_gauge(self) -> bool:
+        """Whether the added masses are a free gauge of these data: no known forcing, and no
+        Morison fluid inertia or a neutrally buoyant body (``ρV = M``). A body's acceleration is
+        then ``F_h,i / (M + m_a,i)`` (plus ``Du/Dt`` where ``ρV = M``), so scaling ``M + m_a`` and
+        the drag together by any factor, even one that varies with ``(r, σ)``, changes nothing."""
+        body = self.constants()
+        neutral = np.isclose(body["rho"] * body["V"], body["M"], rtol=1e-9, atol=0.0)
+        return not self.known_forcing and (not body["fluid_inertia"] or bool(neutral))
+
     def _truth(self, what: str) -> None:
         if self.imported:
             raise DataFormatError(f"{what} is unknown for imported data (no ground truth)")

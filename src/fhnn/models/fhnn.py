@@ -37,6 +37,14 @@ three data seeds, the σ bands with ≥ 20 % quadratic share within 0.9 %) but n
 observations (numbers in the same file), so the default plan (``fhnn.training.plans``) sets it
 on data with noise-free observations only.
 
+Without known forcing, and without a Morison force that tells inertia from drag
+(:attr:`~fhnn.data.dataset.Dataset.masses_are_gauge`), the masses are a free gauge: only
+``c / (M + m_a)`` enters the motion. With masses from ``g_φ(r, σ)`` that gauge may vary with σ, and
+the split of the drag over the inertia with it (``c_l / (M + m_a(σ))`` is then whatever function of
+σ the nets make smooth); ``added_mass="constant"`` holds the gauge to one number per axis, and
+``fhnn train`` sets it on such data (numbers in :func:`fhnn.training.plans.data_settings`). It
+assumes the ratio ``(M + m_ay) / (M + m_ax)``, which such data do fix, constant in ``(r, σ)``.
+
 Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
 constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
 ``ψ_lin = ½ xᵀQx + bᵀx`` (uniform stream, rotation, strain; 5 parameters) — and the smoothness
@@ -126,9 +134,14 @@ class FHNNConfig(Config):
         init_coefficients: coefficient values the net starts at (its last bias is set so).
         linear_drag: "constant" (one learned c_l: the σ → 0 limit of the drag) or "net"
             (c_l(r, σ) from g_φ, as in the paper; only ½ρA c_q σ + c_l is then identifiable).
+        added_mass: "net" (m_ax(r, σ), m_ay(r, σ) from g_φ, as in the paper) or "constant" (two
+            learned constants): where the masses are not identifiable, only ``c / (M + m_a)``
+            (see the module docstring), ``fhnn train`` sets "constant".
         far_field: "linear" (MLP plus a learned linear flow, penalty on the MLP part) or "none".
         r_extrapolation: "hold" (the coefficient net sees r clipped to the training data's range)
             or "net" (the MLP's own extrapolation, as in the paper).
+        coefficients_in_r: whether the coefficient net sees ``r`` (as in the paper); ``False``:
+            the coefficients are functions of σ alone.
         time_modes: harmonics K of a time-dependent flow's basis in time (see :class:`StreamNet`):
             ψ = MLP(ξ)·(1, cos(πjt/T), sin(πjt/T))_{j=1…K}, T the training data's time window;
             16 resolve periods down to about T/6. 0: the paper's MLP(ξ, t/T). Unused for a
@@ -154,8 +167,10 @@ class FHNNConfig(Config):
     fluid_inertia: bool | None = None
     init_coefficients: tuple[float, float, float, float] = (10.0, 10.0, 0.5, 2.0)
     linear_drag: Literal["constant", "net"] = "constant"
+    added_mass: Literal["net", "constant"] = "net"
     far_field: Literal["linear", "none"] = "linear"
     r_extrapolation: Literal["hold", "net"] = "hold"
+    coefficients_in_r: bool = True
     time_modes: int = 16
     slow_weight: float = 0.0
 
@@ -244,15 +259,21 @@ class CoefficientNet(AbstractCoefficients):
     r_scale: Array  # [m]
     sigma_scale: Array  # [m/s]
     c_l_raw: Array | None = None
+    mass_raw: Array | None = None  # (2,): constant added masses, raw
     r_range: Array | None = None  # (2,) [m]: min and max radius of the training positions
+    uses_r: bool = eqx.field(static=True, default=True)  # False: functions of σ alone
 
     def __call__(self, r: Array, sigma: Array) -> Array:
-        if self.r_range is not None:
+        if not self.uses_r:
+            r = jnp.zeros_like(r)
+        elif self.r_range is not None:
             lo, hi = _const(self.r_range)
             r = jnp.clip(r, lo, hi)
         z = self.mlp(jnp.stack([r / _const(self.r_scale), sigma / _const(self.sigma_scale)]))
         if self.c_l_raw is not None:  # constant linear drag: one learned raw value
             z = z.at[3].set(self.c_l_raw)
+        if self.mass_raw is not None:  # constant added masses: two learned raw values
+            z = z.at[:2].set(self.mass_raw)
         return cap(z, jnp.asarray(self.caps), self.cap_map) * _const(self.mask)
 
 
@@ -373,6 +394,8 @@ class FHNN(AbstractVectorField):
         ]
         if coef.c_l_raw is not None:
             picks.append(lambda m: m.eom.coefficients.c_l_raw)
+        if coef.mass_raw is not None:
+            picks.append(lambda m: m.eom.coefficients.mass_raw)
         if flow.mlp is not None:
             picks += [lambda m: m.eom.flow.mlp.layers[-1].weight, lambda m: m.eom.flow.mlp.layers[-1].bias]
         if flow.quadratic is not None and flow.linear is not None:
@@ -504,7 +527,9 @@ def build_fhnn(
         r_scale=_array(float(length_scale)),
         sigma_scale=_array(float(max(speed_scale, 1e-6))),
         c_l_raw=jnp.asarray(bias[3]) if config.linear_drag == "constant" else None,
+        mass_raw=jnp.asarray(bias[:2]) if config.added_mass == "constant" else None,
         r_range=_array(r_range) if r_range is not None and config.r_extrapolation == "hold" else None,
+        uses_r=config.coefficients_in_r,
     )
     # the body's constants as arrays too (EquationsOfMotion never differentiates them): one
     # compiled program serves every body and data set of the same architecture

@@ -112,11 +112,12 @@ class TrainConfig(Config):
             multi-step loss, ``shoot − 1`` tiles each trajectory with windows that share only
             their end samples, so every interval of the data enters the polish once.
         lr_c_l: multiplier of the learning rate of a constant linear drag (the FHNN's
-            ``c_l_raw``; other models have none). Adam moves a parameter by about the rate times
+            ``c_l_raw``; other models have none) and of constant added masses (``mass_raw``,
+            with ``added_mass="constant"``). Adam moves a parameter by about the rate times
             its gradient's mean over its spread; c_l's gradient is noisy and the c_q net soaks up
             its error (c_q(σ) ≈ 1/σ at small σ mimics a linear drag), so at the plain rate c_l
             barely leaves its initial value in a short run (issue 14's data: 2.0 → 2.2 in 4,000
-            steps, truth 3.0, on clean data as on noisy).
+            steps, truth 3.0, on clean data as on noisy). A constant mass is one such value too.
         shoot_noise: ``(σ_x [m], σ_v [m/s])``, the noise of the observed positions and the error
             of the estimated velocity a multi-step window starts from ((0, 0): not modelled).
             With ``σ_x > 0`` the multi-step loss weighs each window's position residuals ``r``
@@ -361,8 +362,9 @@ class AdamSettings(eqx.Module):
         return v
 
     def optimizer(self) -> optax.GradientTransformation:
-        """Adam at :meth:`rate`; with ``lr_c_l ≠ 1`` the parameters named ``c_l_raw`` (a constant
-        linear drag) step at ``lr_c_l`` times that rate."""
+        """Adam at :meth:`rate`; with ``lr_c_l ≠ 1`` the parameters named in
+        :data:`CONSTANT_LEAVES` (a constant linear drag, constant added masses) step at
+        ``lr_c_l`` times that rate."""
         if not self.split_c_l:
             return optax.adam(self.rate)
         fast = optax.adam(lambda i: self.lr_c_l * self.rate(i))
@@ -801,7 +803,7 @@ class Trainer:
     @staticmethod
     def optimizer_for(config: TrainConfig) -> optax.GradientTransformation:
         """Adam with the configuration's piecewise-constant learning rate; with ``lr_c_l ≠ 1`` the
-        parameters named ``c_l_raw`` (a constant linear drag) step at ``lr_c_l`` times that rate."""
+        parameters named in :data:`CONSTANT_LEAVES` step at ``lr_c_l`` times that rate."""
         return AdamSettings.of(config).optimizer()
 
     def init(self, model: AbstractModel) -> TrainState:
@@ -1146,12 +1148,18 @@ def adam_record(settings: AdamSettings, i: int, terms: dict[str, Array], skipped
     return record
 
 
+#: Leaves that are one learned constant each (FHNN's constant linear drag and, with
+#: ``added_mass="constant"``, added masses): they step at ``lr_c_l`` times Adam's rate.
+CONSTANT_LEAVES = ("c_l_raw", "mass_raw")
+
+
 def _c_l_labels(params: Any) -> Any:
-    """``"c_l"`` for a leaf named ``c_l_raw``, ``"rest"`` for every other leaf of ``params``."""
+    """``"c_l"`` for a leaf named in :data:`CONSTANT_LEAVES`, ``"rest"`` for every other leaf of
+    ``params``."""
 
     def label(path: tuple, leaf: Any) -> str:
         last = path[-1] if path else None
-        return "c_l" if getattr(last, "name", None) == "c_l_raw" else "rest"
+        return "c_l" if getattr(last, "name", None) in CONSTANT_LEAVES else "rest"
 
     return jax.tree_util.tree_map_with_path(label, params)
 
