@@ -138,7 +138,7 @@ def test_a_new_run_without_a_plan_starts_from_the_default_plan(
     assert info["train_config"]["w_step"] == 0.0 and info["train_config"]["lambda_flow"] == 0.0
     assert data_settings(ds) == {}
     # velocities measured, derivatives estimated: the one-step loss instead of the derivative loss
-    ds.extra["measured"] = ["positions", "velocities"]
+    ds.extra["measured"] = ["positions", "velocities", "forces"]
     assert data_settings(ds) == {"train.w_deriv": 0.0, "train.w_step": 1.0}
     config = RunConfig().with_settings({**default_settings(ds), **data_settings(ds)})
     assert (config.train.w_deriv, config.train.w_step, config.train.steps) == (0.0, 1.0, 20000)
