@@ -459,13 +459,14 @@ def train(
     before = RunConfig().with_settings({**start, **settings})
     settings = {**settings, **implied}
     config = RunConfig().with_settings({**start, **settings})
-    # what the data's estimated fields call for (below any setting given) and changes
+    # what the data's estimated fields and missing forcing call for (below any setting given) and changes
     said = {k: v for k, v in implied.items() if get_setting(before, k) != get_setting(config, k)}
     notes = []  # said once the runs are open and their data checked: bad input stays one line
-    if "model.added_mass" in said:
+    masses = said.pop("model.added_mass", None)
+    if masses is not None:
         notes.append(
             f"{data}: no known forcing: the added masses are not identifiable, only c/(M + m_a); "
-            f"training with model.added_mass={said.pop('model.added_mass')} (--set wins)"
+            f"training with model.added_mass={masses} (--set wins)"
         )
     if said:
         estimated = [f for f in ("velocities", "derivatives") if f not in dataset.measured]
