@@ -418,6 +418,7 @@ def test_coefficients_held_outside_the_training_radii():
     flat = MODELS["fhnn"].make(FHNNConfig(width=8, coefficients_in_r=False), args, 0).coefficients
     for r in (lo, 0.5 * (lo + hi), 5 * hi):
         np.testing.assert_array_equal(at(flat, r), at(free, 0.0))
+    assert flat.r_range is None and held.r_range is not None  # no radius range it would not use
     assert not np.allclose(at(flat, 0.2), np.asarray(flat(jnp.asarray(0.2), jnp.asarray(0.05))))
 
 

@@ -589,6 +589,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert "are NOT determined by the data" in said and "c_l/(M+m_ax)" in said
     assert "drag/(M+m_ax)" in said and "drag/(M + m_a) most tightly" in said
     assert "the data fix their sum" not in said  # unforced, the total drag is not determined either
+    assert "model.added_mass=constant" not in said  # that run's masses came from the net
     # trained on them, the masses are held constant: a gauge the data leave free, said so
     with pytest.raises(SystemExit) as info:
         main(
@@ -600,6 +601,12 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert "no known forcing: the added masses are not identifiable, only c/(M + m_a); training with " in said
     assert "model.added_mass=constant (--set wins)" in said
     assert Run.load(folder / "unforced_run").config.model.added_mass == "constant"
+    with pytest.raises(SystemExit) as info:
+        main(["inspect", str(folder / "unforced_run")])
+    assert info.value.code == 0
+    said = " ".join(capsys.readouterr().out.split())
+    assert "are NOT determined by the data" in said
+    assert "Training held the added masses to two constants (model.added_mass=constant)" in said
     coefficients = read_csv_columns(run / "coefficients.csv")
     assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l", "drag"]
     assert coefficients["r"].size > 50 and np.all(coefficients["m_ax"] > 0)

@@ -1026,6 +1026,18 @@ def _drag_note(sigma_min: float) -> str:
     )
 
 
+def _held_masses_note(model: Any) -> str:
+    """What to add to the no-forcing notes where training held the added masses to two constants
+    (``model.added_mass="constant"``, :func:`fhnn.training.plans.data_settings`): their values
+    are where training left a free gauge, not estimates. Empty otherwise."""
+    if getattr(model.coefficients, "mass_raw", None) is None:
+        return ""
+    return (
+        " Training held the added masses to two constants (model.added_mass=constant), since the "
+        "data cannot fix them: their values are where training left that free gauge."
+    )
+
+
 def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> None:
     """``fhnn inspect`` on imported data: the learned coefficients and flow, no truth to compare."""
     from fhnn.evaluation.recovery import learned_coefficients
@@ -1065,7 +1077,9 @@ def _inspect_learned(run_dir: Path, model: Any, dataset: Any, as_json: bool) -> 
             "coefficients above are NOT determined by the data (scaling inertia and drag together "
             "changes nothing a neutrally buoyant body does); what is identifiable are the ratios, "
             "drag/(M + m_a) most tightly (the relative velocity's relaxation rate [1/s] at each σ; its "
-            "split between c_q and c_l rests on the slowest relative speeds in the data):",
+            "split between c_q and c_l rests on the slowest relative speeds in the data)."
+            + _held_masses_note(model)
+            + " The ratios:",
             soft_wrap=True,
         )
         ratios = Table(title="identifiable ratios over the covered (r, σ)", title_justify="left")
@@ -1131,7 +1145,8 @@ def _inspect_ensemble(folder: Path, data: Path | None, as_json: bool) -> None:
             "note: no known forcing in the data — the added masses and drag coefficients are NOT "
             "determined by the data; only the ratios c/(M + m_a) are (the members' masses spread "
             f"{mass_width:.1%}, their ratios {ratio_width:.1%}; the total drag's, drag/(M + m_a), "
-            f"{drag_width:.1%}: the split between c_q and c_l rests on the slowest relative speeds).",
+            f"{drag_width:.1%}: the split between c_q and c_l rests on the slowest relative speeds)."
+            + _held_masses_note(models[0]),
             soft_wrap=True,
         )
     bootstrap = all(r.train_config.bootstrap for r in runs)
@@ -1244,7 +1259,9 @@ def inspect(
         stdout.print(
             "note: trained without actuation — only the ratios c / (M + m_a) are identifiable, the "
             "total drag's drag / (M + m_a) most tightly; the absolute masses and drag coefficients "
-            "above are not measured quantities. The ratios: "
+            "above are not measured quantities."
+            + _held_masses_note(model)
+            + " The ratios: "
             + ", ".join(
                 f"{name} {r['mean_rel']:.2%} mean / {r['max_rel']:.2%} max rel. error"
                 for name, r in coef["_ratios"].items()

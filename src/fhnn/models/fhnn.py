@@ -478,7 +478,8 @@ def build_fhnn(
         length_scale: typical |x| [m] (input scaling of ψ_θ and of r).
         speed_scale: typical flow/relative speed [m/s] (scales ψ_θ's output and σ).
         time_scale: typical duration [s] (input scaling of t).
-        r_range: (min, max) radius of the training positions [m]; used by ``r_extrapolation="hold"``.
+        r_range: (min, max) radius of the training positions [m]; used by ``r_extrapolation="hold"``
+            where the coefficients are functions of r (``coefficients_in_r``).
         key: PRNG key.
     """
     k_flow, k_coef = jax.random.split(key)
@@ -528,7 +529,11 @@ def build_fhnn(
         sigma_scale=_array(float(max(speed_scale, 1e-6))),
         c_l_raw=jnp.asarray(bias[3]) if config.linear_drag == "constant" else None,
         mass_raw=jnp.asarray(bias[:2]) if config.added_mass == "constant" else None,
-        r_range=_array(r_range) if r_range is not None and config.r_extrapolation == "hold" else None,
+        r_range=(
+            _array(r_range)
+            if r_range is not None and config.r_extrapolation == "hold" and config.coefficients_in_r
+            else None
+        ),
         uses_r=config.coefficients_in_r,
     )
     # the body's constants as arrays too (EquationsOfMotion never differentiates them): one
