@@ -601,6 +601,23 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert "no known forcing: the added masses are not identifiable, only c/(M + m_a); training with " in said
     assert "model.added_mass=constant (--set wins)" in said
     assert Run.load(folder / "unforced_run").config.model.added_mass == "constant"
+    # the settings the data imply are a new run's: a run made before they were (here: another
+    # batch size stored) resumes with what it stored, the same command not refused
+    info_path = folder / "unforced_run" / "run.json"
+    info = json.loads(info_path.read_text())
+    assert info["train_config"]["batch_size"] == 32  # implied by the estimated velocities
+    info["train_config"]["batch_size"] = 16
+    info_path.write_text(json.dumps(info))
+    with pytest.raises(SystemExit) as info_exit:
+        main(
+            ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run"), "--steps", "2"]
+            + ["--set", "train.shoot=8", "--set", "train.track_steps=1"]
+        )
+    assert info_exit.value.code == 0, capsys.readouterr().err
+    captured = capsys.readouterr()
+    assert "has finished training" in " ".join(captured.out.split())
+    assert "no known forcing" not in captured.err  # nothing newly implied is said of a resumed run
+    assert Run.load(folder / "unforced_run").train_config.batch_size == 16
     with pytest.raises(SystemExit) as info:
         main(["inspect", str(folder / "unforced_run")])
     assert info.value.code == 0

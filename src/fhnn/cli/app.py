@@ -423,9 +423,10 @@ def train(
     quiet: QuietOption = False,
 ) -> None:
     """Train a model on a data set. If RUN already holds a run it is resumed from its last
-    checkpoint; options that differ from the ones it was started with are refused (--extend
-    allows more steps). Checkpoints are written at every validation and at least every minute;
-    Ctrl-C stops the run, and the same command resumes it."""
+    checkpoint with its stored settings (those the data imply apply to new runs only); options
+    that differ from the ones it was started with are refused (--extend allows more steps).
+    Checkpoints are written at every validation and at least every minute; Ctrl-C stops the run,
+    and the same command resumes it."""
     from fhnn.training.ensemble import is_ensemble, read_seeds, start_ensemble
     from fhnn.training.run import RunConfig
 
@@ -455,12 +456,14 @@ def train(
         settings = {**get_plan(plan).settings(kind, noisy=is_noisy(dataset)), **settings}
     # a new run without --plan starts from the default plan; a resumed run keeps what it stored
     start = default_settings(dataset, kind) if plan is None else {}
+    # what the data's estimated fields and missing forcing call for, below any setting given; like
+    # the default plan, for a new run only (a resumed run keeps what it stored, even if made before
+    # these settings were implied)
     implied = {k: v for k, v in data_settings(dataset, kind).items() if k not in given}
     before = RunConfig().with_settings({**start, **settings})
-    settings = {**settings, **implied}
-    config = RunConfig().with_settings({**start, **settings})
-    # what the data's estimated fields and missing forcing call for (below any setting given) and changes
-    said = {k: v for k, v in implied.items() if get_setting(before, k) != get_setting(config, k)}
+    config = RunConfig().with_settings({**start, **settings, **implied})
+    fresh = not (out / "run.json").exists() and not is_ensemble(out)
+    said = {k: v for k, v in implied.items() if fresh and get_setting(before, k) != get_setting(config, k)}
     notes = []  # said once the runs are open and their data checked: bad input stays one line
     masses = said.pop("model.added_mass", None)
     if masses is not None:
@@ -473,8 +476,8 @@ def train(
         with_ = ", ".join(f"{k}={v}" for k, v in said.items())
         fields = " and ".join(estimated)
         notes.append(f"{data}: {fields} were estimated, not measured: training with {with_} (--set wins)")
-    new_run = not (out / "run.json").exists() and not is_ensemble(out) and "model.slow_weight" not in given
-    if new_run and kind == "fhnn" and (plan or DEFAULT_PLAN) == DEFAULT_PLAN:
+    default_plan = (plan or DEFAULT_PLAN) == DEFAULT_PLAN
+    if fresh and "model.slow_weight" not in given and kind == "fhnn" and default_plan:
         notes += _window_weights_note(data, dataset, config)
     if n_seeds is None and is_ensemble(out):
         n_seeds = len(read_seeds(out))
@@ -492,7 +495,7 @@ def train(
     runs = []
     for seed_k, folder in zip(seeds, start_ensemble(out, seeds), strict=True):
         member = {**settings, "train.seed": seed_k}
-        member_config = RunConfig().with_settings({**start, **member})
+        member_config = RunConfig().with_settings({**start, **settings, **implied, "train.seed": seed_k})
         runs.append(_open_run(folder, member, member_config, dataset, data, extend=extend))
     labels = [f"seed {s} ({k + 1}/{n_seeds}) " for k, s in enumerate(seeds)]
     _train_runs(runs, labels, dataset, quiet=quiet, notes=notes)
