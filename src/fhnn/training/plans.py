@@ -266,7 +266,11 @@ def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
     validation forecast from 98 origins 2.160 / 2.234 / 2.453 against 2.173 / 2.221 / 2.449 mm
     at 5 s, a tie the validation split cannot break (against the truth: ``c_l`` 1.28 / 0.37 /
     2.23 % off against 1.36 / 1.01 / 0.06 %, ``c_q`` in the bands with ≥ 20 % quadratic share
-    up to 5.5 / 3.4 / 7.0 % against 18.9 / 10.3 / 10.0 %).
+    up to 5.5 / 3.4 / 7.0 % against 18.9 / 10.3 / 10.0 %). The same without known forcing
+    (masses held constant), data seeds 0 / 1
+    (``own_data{,_seed1}_noforce_modelcoefficients_in_rfalse.json``): validation forecast 2.132 /
+    2.284 against 2.142 / 2.233 mm, worse on seed 1 (``c_l/(M+m_a)`` 4.0 / 6.2 % off against
+    4.2 / 4.8 %, ``c_q/(M+m_a)`` 9.4 / 14.3 % against 10.3 / 11.1 %).
     """
     out: dict[str, Any] = {}
     if kind == "fhnn" and dataset.masses_are_gauge:
