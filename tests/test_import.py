@@ -604,16 +604,16 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     # the settings the data imply are a new run's: a run made before they were (here: another
     # batch size stored) resumes with what it stored, the same command not refused
     info_path = folder / "unforced_run" / "run.json"
-    info = json.loads(info_path.read_text())
-    assert info["train_config"]["batch_size"] == 32  # implied by the estimated velocities
-    info["train_config"]["batch_size"] = 16
-    info_path.write_text(json.dumps(info))
-    with pytest.raises(SystemExit) as info_exit:
+    stored = json.loads(info_path.read_text())
+    assert stored["train_config"]["batch_size"] == 32  # implied by the estimated velocities
+    stored["train_config"]["batch_size"] = 16
+    info_path.write_text(json.dumps(stored))
+    with pytest.raises(SystemExit) as info:
         main(
             ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run"), "--steps", "2"]
             + ["--set", "train.shoot=8", "--set", "train.track_steps=1"]
         )
-    assert info_exit.value.code == 0, capsys.readouterr().err
+    assert info.value.code == 0, capsys.readouterr().err
     captured = capsys.readouterr()
     assert "has finished training" in " ".join(captured.out.split())
     assert "no known forcing" not in captured.err  # nothing newly implied is said of a resumed run

@@ -463,7 +463,11 @@ def train(
     before = RunConfig().with_settings({**start, **settings})
     config = RunConfig().with_settings({**start, **settings, **implied})
     fresh = not (out / "run.json").exists() and not is_ensemble(out)
-    said = {k: v for k, v in implied.items() if fresh and get_setting(before, k) != get_setting(config, k)}
+    said = (
+        {k: v for k, v in implied.items() if get_setting(before, k) != get_setting(config, k)}
+        if fresh
+        else {}
+    )
     notes = []  # said once the runs are open and their data checked: bad input stays one line
     masses = said.pop("model.added_mass", None)
     if masses is not None:
@@ -495,7 +499,7 @@ def train(
     runs = []
     for seed_k, folder in zip(seeds, start_ensemble(out, seeds), strict=True):
         member = {**settings, "train.seed": seed_k}
-        member_config = RunConfig().with_settings({**start, **settings, **implied, "train.seed": seed_k})
+        member_config = RunConfig().with_settings({**start, **member, **implied})
         runs.append(_open_run(folder, member, member_config, dataset, data, extend=extend))
     labels = [f"seed {s} ({k + 1}/{n_seeds}) " for k, s in enumerate(seeds)]
     _train_runs(runs, labels, dataset, quiet=quiet, notes=notes)
