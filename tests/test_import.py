@@ -594,7 +594,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     with pytest.raises(SystemExit) as info:
         main(
             ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run"), "--steps", "2"]
-            + ["--set", "train.shoot=8", "--set", "train.track_steps=1"]
+            + ["--set", "train.shoot=8", "--set", "train.track_steps=0"]
         )
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().err.split())
@@ -611,7 +611,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     with pytest.raises(SystemExit) as info:
         main(
             ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run"), "--steps", "2"]
-            + ["--set", "train.shoot=8", "--set", "train.track_steps=1"]
+            + ["--set", "train.shoot=8", "--set", "train.track_steps=0"]
         )
     assert info.value.code == 0, capsys.readouterr().err
     captured = capsys.readouterr()
