@@ -591,11 +591,10 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert "the data fix their sum" not in said  # unforced, the total drag is not determined either
     assert "model.added_mass=constant" not in said  # that run's masses came from the net
     # trained on them, the masses are held constant: a gauge the data leave free, said so
+    train_unforced = ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run")]
+    train_unforced += ["--steps", "2", "--set", "train.shoot=8", "--set", "train.track_steps=0"]
     with pytest.raises(SystemExit) as info:
-        main(
-            ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run"), "--steps", "2"]
-            + ["--set", "train.shoot=8", "--set", "train.track_steps=0"]
-        )
+        main(train_unforced)
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().err.split())
     assert "no known forcing: the added masses are not identifiable, only c/(M + m_a); training with " in said
@@ -609,10 +608,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     stored["train_config"]["batch_size"] = 16
     info_path.write_text(json.dumps(stored))
     with pytest.raises(SystemExit) as info:
-        main(
-            ["train", str(folder / "unforced.h5"), "-o", str(folder / "unforced_run"), "--steps", "2"]
-            + ["--set", "train.shoot=8", "--set", "train.track_steps=0"]
-        )
+        main(train_unforced)
     assert info.value.code == 0, capsys.readouterr().err
     captured = capsys.readouterr()
     assert "has finished training" in " ".join(captured.out.split())
