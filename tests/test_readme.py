@@ -29,6 +29,7 @@ def test_readme_python_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     rmse = float(lines[0].split()[0])
     assert 0 < rmse < 0.05 and lines[0].endswith("m at 2 s")
     assert 0 <= float(lines[1]) < 1
+    assert eval(lines[2]) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l", "drag"]
     assert (tmp_path / "sv_run" / "run.json").is_file()
 
 

@@ -7,16 +7,15 @@ the linear and quadratic drag, and predict long horizons stably.
 Importing :mod:`fhnn` switches JAX to float64 (a process-global setting, :mod:`fhnn.runtime`):
 every computation in this package is carried out in double precision.
 
-The names a Python user needs are available here (imported on first use)::
+Each command of the ``fhnn`` CLI is a function here with the same options (:mod:`fhnn.api`)::
 
     import fhnn
 
-    ds = fhnn.simulate("steady_vortex", n_traj=30, duration=5.0)  # or fhnn.read_dataset(path)
-    fhnn.write_dataset(ds, "sv.h5")
-    config = fhnn.RunConfig().with_settings({"model.width": 32, "train.steps": 2000})
-    run = fhnn.train("sv.h5", "runs/sv", config)
-    print(fhnn.evaluate(run.best_model, ds, [1, 5])["horizons"])
-    run = fhnn.load_run("runs/sv")  # later, from any folder; run.dataset() is its data set
+    data = fhnn.from_table(df, mass=10.0, area=0.02)  # a pandas DataFrame: traj_id, t, x, y[, Fx, Fy]
+    fit = fhnn.train(data, "runs/a", seeds=3)         # or fhnn.load("runs/a") later
+    fit.coefficients()                                # pandas.DataFrame, with 90 % intervals
+    fit.flow()                                        # xarray.Dataset
+    fit.predict(5.0, history=df)                      # a forecast with its band
 """
 
 from __future__ import annotations
@@ -28,10 +27,22 @@ from fhnn.runtime import __version__
 
 #: Public name → the module that defines it (imported lazily, so ``import fhnn`` stays light).
 _PUBLIC = {
+    # one function per command (fhnn.api)
+    "simulate": "fhnn.api.data",
+    "import_table": "fhnn.api.data",
+    "from_table": "fhnn.api.data",
+    "info": "fhnn.api.data",
+    "train": "fhnn.api.train",
+    "evaluate": "fhnn.api.evaluate",
+    "inspect": "fhnn.api.inspect",
+    "predict": "fhnn.api.predict",
+    "reproduce": "fhnn.api.reproduce",
+    "load": "fhnn.api.fit",
+    "Fit": "fhnn.api.fit",
+    # data sets, tables, scenarios
     "read_dataset": "fhnn.data.dataset",
     "write_dataset": "fhnn.data.dataset",
     "Dataset": "fhnn.data.dataset",
-    "simulate": "fhnn.data.simulate",
     "simulate_dataset": "fhnn.data.simulate",
     "SimulationConfig": "fhnn.data.simulate",
     "read_table": "fhnn.data.table",
@@ -39,6 +50,7 @@ _PUBLIC = {
     "ImportSettings": "fhnn.data.table",
     "get_scenario": "fhnn.physics.scenarios",
     "SCENARIOS": "fhnn.physics.scenarios",
+    # models, configuration, runs
     "MODELS": "fhnn.models.registry",
     "FHNN": "fhnn.models.fhnn",
     "FHNNConfig": "fhnn.models.fhnn",
@@ -46,9 +58,7 @@ _PUBLIC = {
     "RunConfig": "fhnn.training.run",
     "PLANS": "fhnn.training.plans",
     "Run": "fhnn.training.run",
-    "train": "fhnn.training.run",
     "load_run": "fhnn.training.run",
-    "evaluate": "fhnn.evaluation.evaluate",
     "coefficient_recovery": "fhnn.evaluation.recovery",
     "flow_recovery": "fhnn.evaluation.recovery",
 }

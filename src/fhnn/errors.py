@@ -20,3 +20,8 @@ class DataFormatError(FhnnError, ValueError):
 
 class SimulationError(FhnnError, RuntimeError):
     """The ground-truth simulator could not produce the requested trajectories."""
+
+
+class Interrupted(Exception):
+    """Ctrl-C or SIGTERM stopped work that is kept (training, a reproduction); the message says
+    what was kept and how to resume (the CLI exits with status 130)."""

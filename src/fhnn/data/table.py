@@ -300,13 +300,36 @@ def _pair(values: dict[str, np.ndarray], a: str, b: str, rows: np.ndarray) -> np
     return np.stack([values[a][rows], values[b][rows]], axis=1) if a in values else None
 
 
+def _frame_to_arrow(frame: Any) -> tuple[Path, Any]:
+    """A ``pandas.DataFrame`` (or an Arrow table) as an Arrow table, ``traj_id`` as text, named
+    ``DataFrame`` in messages."""
+    import pyarrow as pa
+
+    try:
+        arrow = frame if isinstance(frame, pa.Table) else pa.Table.from_pandas(frame, preserve_index=False)
+    except (TypeError, ValueError, pa.ArrowException) as exc:
+        raise DataFormatError(
+            f"not a table (a pandas DataFrame, or a .csv or .parquet path): {exc}"
+        ) from None
+    names = [str(name).strip() for name in arrow.column_names]
+    arrow = arrow.rename_columns(names)
+    if "traj_id" in names:
+        i = names.index("traj_id")
+        ids = pa.array(["" if v is None else str(v) for v in arrow.column(i).to_pylist()], pa.string())
+        arrow = arrow.set_column(i, "traj_id", ids)
+    return Path("DataFrame"), arrow
+
+
 def _open(
-    path: str | os.PathLike[str], kind: str, required: tuple[str, ...], allowed: tuple[str, ...]
+    path: str | os.PathLike[str] | Any, kind: str, required: tuple[str, ...], allowed: tuple[str, ...]
 ) -> tuple[Path, Any, list[str]]:
-    """The checked path, its Arrow table and column names; missing ``required`` or columns not
-    ``allowed`` are errors."""
-    path = check_input_file(path, kind)
-    arrow = _read_arrow(path)
+    """The checked path (or a ``pandas.DataFrame``), its Arrow table and column names; missing
+    ``required`` or columns not ``allowed`` are errors."""
+    if isinstance(path, str | os.PathLike):
+        path = check_input_file(path, kind)
+        arrow = _read_arrow(path)
+    else:
+        path, arrow = _frame_to_arrow(path)
     names = list(arrow.column_names)
     missing = [c for c in required if c not in names]
     if missing:
@@ -355,10 +378,11 @@ def _trajectory_ids(column: Any) -> tuple[np.ndarray, np.ndarray]:
     return names[codes], rank[codes]
 
 
-def read_table(path: str | os.PathLike[str], origin: str | None = None) -> Table:
-    """Read and check a trajectory table (see the module docstring); date-times count in seconds
-    from ``origin`` where given (a date-time as :attr:`Table.time_origin` holds one), else from
-    the table's earliest."""
+def read_table(path: str | os.PathLike[str] | Any, origin: str | None = None) -> Table:
+    """Read and check a trajectory table (see the module docstring): a .csv or .parquet path, or
+    a ``pandas.DataFrame`` with the same columns; date-times count in seconds from ``origin``
+    where given (a date-time as :attr:`Table.time_origin` holds one), else from the table's
+    earliest."""
     path, arrow, names = _open(path, "a table", REQUIRED, COLUMNS)
     for a, b in OPTIONAL_PAIRS:
         if (a in names) != (b in names):
@@ -403,7 +427,7 @@ FORCING_COLUMNS = ("t", "Fx", "Fy")
 
 
 def read_forcing(
-    path: str | os.PathLike[str], origin: str | None = None
+    path: str | os.PathLike[str] | Any, origin: str | None = None
 ) -> dict[str | None, tuple[np.ndarray, np.ndarray]]:
     """A table of known forces: columns ``t, Fx, Fy`` [s, N, N] and optionally ``traj_id``; ``t``
     in seconds or as ISO-8601 date-times, counted from ``origin`` where given, as in

@@ -21,6 +21,9 @@ has an infinite error: no trajectory is left out, so ``mse_*``, ``rmse_*``, ``ad
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
 from fhnn.data.dataset import samples_until
@@ -82,26 +85,129 @@ def liu_weisberg(separation: np.ndarray, path: np.ndarray) -> float:
     return max(0.0, 1.0 - total / travelled) if np.isfinite(total) else 0.0
 
 
+@dataclass(frozen=True)
+class Errors:
+    """What a metric is computed from.
+
+    Attributes:
+        err: state errors at every checkpoint, pooled over trajectories, ``(..., 4)``.
+        final: each trajectory's error at its last checkpoint, ``(N, 4)``.
+        skill: each trajectory's Liu–Weisberg skill, ``(N,)``.
+        diverged: trajectories whose rollout diverged.
+        eps: the ``within_eps`` radius [m].
+    """
+
+    err: np.ndarray
+    final: np.ndarray
+    skill: list[float]
+    diverged: int
+    eps: float
+
+    @property
+    def final_distance(self) -> np.ndarray:
+        """``‖Δx(H)‖`` per trajectory, ``(N,)`` [m]."""
+        return np.linalg.norm(self.final[:, :2], axis=-1)
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A metric of rollouts at a horizon, as every report shows it.
+
+    Attributes:
+        name: its key in results (``fhnn evaluate --json``).
+        label: its name in tables and figures, with the unit.
+        header: its column header in ``fhnn evaluate`` (``""``: not shown there).
+        format: how ``fhnn evaluate`` formats a value (``str.format``).
+        compute: its value from :class:`Errors` (``None``: computed elsewhere, e.g.
+            ``outside_training`` by :func:`fhnn.evaluation.evaluate.evaluate`).
+        error: a diverged rollout makes it infinite (it counts in the divergence rule).
+        fraction: a fraction in [0, 1] (tables show it in percent; figures on a linear axis).
+        curve: a panel of the error-against-horizon figure.
+    """
+
+    name: str
+    label: str
+    header: str = ""
+    format: str = "{:.3g}"
+    compute: Callable[[Errors], float] | None = None
+    error: bool = False
+    fraction: bool = False
+    curve: bool = False
+
+
+#: Every metric, by name, in the order results hold them.
+METRICS: dict[str, Metric] = {}
+
+
+def register_metric(metric: Metric) -> Metric:
+    """Add ``metric`` to :data:`METRICS` (after those already there); returns it."""
+    METRICS[metric.name] = metric
+    return metric
+
+
+def _mse(err: np.ndarray, part: slice) -> float:
+    return float(np.mean(err[..., part] ** 2))
+
+
+for _metric in (
+    Metric("mse_pos", "MSE(pos) [m²]", compute=lambda e: _mse(e.err, slice(0, 2)), error=True),
+    Metric(
+        "rmse_pos",
+        "RMSE(pos) [m]",
+        "RMSE\npos [m]",
+        compute=lambda e: float(np.sqrt(_mse(e.err, slice(0, 2)))),
+        error=True,
+        curve=True,
+    ),
+    Metric("mse_vel", "MSE(vel) [m²/s²]", compute=lambda e: _mse(e.err, slice(2, 4)), error=True),
+    Metric(
+        "rmse_vel",
+        "RMSE(vel) [m/s]",
+        "RMSE\nvel [m/s]",
+        compute=lambda e: float(np.sqrt(_mse(e.err, slice(2, 4)))),
+        error=True,
+    ),
+    Metric(
+        "ade",
+        "ADE(pos) [m]",
+        "ADE\n[m]",
+        compute=lambda e: float(np.mean(np.linalg.norm(e.err[..., :2], axis=-1))),
+        error=True,
+        curve=True,
+    ),
+    Metric(
+        "fde",
+        "FDE(pos) [m]",
+        "FDE\n[m]",
+        compute=lambda e: float(np.mean(e.final_distance)),
+        error=True,
+        curve=True,
+    ),
+    Metric(
+        "within_eps",
+        "within 1 cm",
+        "within\n1 cm",
+        "{:.0%}",
+        compute=lambda e: float(np.mean(e.final_distance < e.eps)),
+        fraction=True,
+        curve=True,
+    ),
+    Metric("skill", "Liu–Weisberg skill", "LW\nskill", "{:.2f}", compute=lambda e: float(np.mean(e.skill))),
+    Metric("diverged", "diverged rollouts", "diverged", "{:d}", compute=lambda e: e.diverged),
+    Metric("n_traj", "trajectories", compute=lambda e: int(e.final.shape[0])),
+    Metric("outside_training", "left training region", "left\ntraining", "{:.0%}", fraction=True),
+):
+    register_metric(_metric)
+
+
 def _scores(
     err: np.ndarray, final: np.ndarray, diverged: int, eps: float, skill: list[float]
 ) -> dict[str, float]:
-    """The metrics of the state errors ``err`` ``(..., 4)`` at every checkpoint (pooled),
-    ``final`` ``(N, 4)`` at each trajectory's last one, and each trajectory's ``skill``."""
-    mse_pos = float(np.mean(err[..., :2] ** 2))
-    mse_vel = float(np.mean(err[..., 2:] ** 2))
-    final_dist = np.linalg.norm(final[:, :2], axis=-1)
-    return {
-        "mse_pos": mse_pos,
-        "rmse_pos": float(np.sqrt(mse_pos)),
-        "mse_vel": mse_vel,
-        "rmse_vel": float(np.sqrt(mse_vel)),
-        "ade": float(np.mean(np.linalg.norm(err[..., :2], axis=-1))),
-        "fde": float(np.mean(final_dist)),
-        "within_eps": float(np.mean(final_dist < eps)),
-        "skill": float(np.mean(skill)),
-        "diverged": diverged,
-        "n_traj": int(final.shape[0]),
-    }
+    """Every computed metric of :data:`METRICS` from the state errors ``err`` ``(..., 4)`` at
+    every checkpoint (pooled), ``final`` ``(N, 4)`` at each trajectory's last one, and each
+    trajectory's ``skill``."""
+    errors = Errors(err, final, skill, diverged, eps)
+    return {m.name: m.compute(errors) for m in METRICS.values() if m.compute is not None}
 
 
 def irregular_metrics(

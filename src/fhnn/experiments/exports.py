@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -159,8 +160,25 @@ def write_flow_netcdf(
     n_times: int = 16,
     reach: float = 0.25,
 ) -> Path:
-    """Write the learned flow (of several models, an ensemble: the median and the interval) on an
-    ``n × n`` grid over the training positions (see the module docstring) to ``path`` (``.nc``)."""
+    """Write :func:`flow_dataset` to ``path`` (``.nc``, NetCDF-4) atomically; returns ``path``."""
+    ds = flow_dataset(flows, dataset, n=n, n_times=n_times, reach=reach)
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        ds.to_netcdf(tmp, engine="h5netcdf")
+    return path
+
+
+def flow_dataset(
+    flows: AbstractFlow | list[AbstractFlow],
+    dataset: Dataset,
+    *,
+    n: int = 60,
+    n_times: int = 16,
+    reach: float = 0.25,
+) -> Any:
+    """The learned flow (of several models, an ensemble: the median and the interval) on an
+    ``n × n`` grid over the training positions, as an ``xarray.Dataset`` (see the module
+    docstring for its variables, units and NaN points)."""
     import xarray as xr
 
     x, y, near = flow_box(dataset, n=n, reach=reach)
@@ -229,10 +247,7 @@ def write_flow_netcdf(
     )
     if steady:
         ds = ds.isel(t=0, drop=True)
-    path = Path(path)
-    with atomic_output(path) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
-    return path
+    return ds
 
 
 __all__ = [
@@ -240,6 +255,7 @@ __all__ = [
     "coefficient_grid",
     "coefficient_points",
     "ensemble_intervals",
+    "flow_dataset",
     "member_coefficients",
     "with_drag",
     "write_coefficients_csv",

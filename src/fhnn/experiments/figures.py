@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from fhnn.data.dataset import Dataset
+from fhnn.evaluation.metrics import METRICS
 from fhnn.evaluation.recovery import coefficients_at, flow_recovery, visited_r_sigma
 from fhnn.physics.body import COEFFICIENT_NAMES, AbstractCoefficients
 from fhnn.physics.dynamics import EquationsOfMotion
@@ -196,33 +197,29 @@ def horizon_figure(
     title: str = "",
     formats: tuple[str, ...] = ("png", "svg"),
 ) -> list[Path]:
-    """Errors against horizon: RMSE, ADE, FDE (log scale) and within-ε, mean ± std over seeds.
+    """Errors against horizon (the metrics registered with ``curve``), mean ± std over seeds.
 
     Args:
         horizons: horizons [s].
-        curves: model → metric (``rmse_pos``, ``ade``, ``fde``, ``within_eps``) → (mean, std),
-            arrays over ``horizons`` (NaN where every rollout diverged).
+        curves: model → metric (each of :data:`~fhnn.evaluation.metrics.METRICS` with
+            ``curve``) → (mean, std), arrays over ``horizons`` (NaN where every rollout diverged).
     """
-    panels = (
-        ("rmse_pos", "RMSE(pos) [m]"),
-        ("ade", "ADE [m]"),
-        ("fde", "FDE [m]"),
-        ("within_eps", "within 1 cm"),
-    )
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    panels = [m for m in METRICS.values() if m.curve]
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.5 * len(panels), 4.2), squeeze=False)
+    axes = axes[0]
     h = np.asarray(horizons, dtype=float)
-    for ax, (metric, label) in zip(axes, panels, strict=True):
+    for ax, metric in zip(axes, panels, strict=True):
         for name, metrics in curves.items():
-            mean, std = metrics[metric]
+            mean, std = metrics[metric.name]
             line = ax.plot(h, mean, "o-", ms=3, label=name)[0]
             ax.fill_between(h, mean - std, mean + std, color=line.get_color(), alpha=0.15, lw=0)
         ax.set_xscale("log")
-        if metric != "within_eps":
+        if not metric.fraction:
             ax.set_yscale("log")
         else:
             ax.set_ylim(-0.05, 1.05)
         ax.set_xlabel("horizon [s]")
-        ax.set_title(label)
+        ax.set_title(metric.label)
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=7)
     if title:

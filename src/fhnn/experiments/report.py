@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from fhnn.data.dataset import read_dataset
+from fhnn.evaluation.metrics import METRICS
 from fhnn.experiments import figures
 from fhnn.experiments.grid import ABLATIONS, HORIZONS, ModelJob, ReproduceConfig
 from fhnn.experiments.tables import (
@@ -118,9 +119,7 @@ def make_figures(
         curves = {}
         for v in models:
             rs = [results[j.id] for j in jobs if j.data.id == d.id and j.variant == v]
-            curves[MODEL_NAMES.get(v, v)] = {
-                m: _curve(rs, m) for m in ("rmse_pos", "ade", "fde", "within_eps")
-            }
+            curves[MODEL_NAMES.get(v, v)] = {m.name: _curve(rs, m.name) for m in METRICS.values() if m.curve}
         written += figures.horizon_figure(
             list(HORIZONS),
             curves,

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from fhnn.evaluation.metrics import METRICS
 from fhnn.experiments.grid import ABLATIONS, ModelJob
 from fhnn.experiments.paper import paper_value
 from fhnn.models.registry import MODELS
@@ -44,13 +45,9 @@ CAPTIONS["T6"] = (
     "Without actuation (solid_body_vortex, *_noact) only c / (M + m_a) is identifiable"
 )
 RECOVERY_METRICS = ("m_ax", "m_ay", "c_q", "c_l", "flow")
+#: Column label of every metric: the rollout metrics' from their registry, then the recovery's.
 METRIC_NAMES = {
-    "rmse_pos": "RMSE(pos) [m]",
-    "rmse_vel": "RMSE(vel) [m/s]",
-    "ade": "ADE(pos) [m]",
-    "fde": "FDE(pos) [m]",
-    "within_eps": "within 1 cm",
-    "outside_training": "left training region",
+    **{m.name: m.label for m in METRICS.values()},
     "m_ax": "m_ax",
     "m_ay": "m_ay",
     "c_q": "c_q(σ)",
@@ -58,7 +55,7 @@ METRIC_NAMES = {
     "flow": "flow (rel. L2)",
 }
 #: Error metrics a diverged rollout makes infinite (the fractions count it as a failure).
-ERROR_METRICS = ("rmse_pos", "rmse_vel", "ade", "fde")
+ERROR_METRICS = tuple(m.name for m in METRICS.values() if m.error)
 #: How a table treats diverged rollouts; printed under every table.
 DIVERGENCE_RULE = (
     "No rollout or seed is left out: a diverged rollout counts as an infinite error, so a seed with "
@@ -95,7 +92,7 @@ class Cell:
             return f"diverged ({self.diverged}/{self.rollouts})" if self.diverged else "n/a"
         if self.statistic == "median":
             return f"median {mean:.2e} ({self.diverged}/{self.rollouts} div.)"
-        pct = self.metric in RECOVERY_METRICS or self.metric in ("outside_training", "within_eps")
+        pct = self.metric in RECOVERY_METRICS or (self.metric in METRICS and METRICS[self.metric].fraction)
         if pct:  # percentages; a spread below 0.001 percentage points is rounding noise
             out = f"{100 * mean:.3g} %" + (f" ± {100 * std:.2g} %" if self.seeds > 1 else "")
             if self.seeds > 1 and 100 * std < 1e-3:

@@ -41,7 +41,6 @@ from fhnn.files import check_new_folder, commit_files, recover_files
 from fhnn.models.base import AbstractModel, AbstractVectorField
 from fhnn.models.registry import MODELS
 from fhnn.runtime import __version__
-from fhnn.training.plans import data_settings, default_settings
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
 RUN_FORMAT = "fhnn-run"
@@ -584,35 +583,6 @@ def _array_or_shape(leaf: Any) -> bool:
 
 def _keep(_file: Any, like: Any) -> Any:
     return like
-
-
-def train(
-    data: Dataset | str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    config: RunConfig | None = None,
-    *,
-    callback: Callable[[TrainState, dict[str, float]], None] | None = None,
-) -> Run:
-    """Train ``config`` on ``data`` (a data set or an HDF5 path) into the run folder ``out``.
-    Without ``config``: FHNN as ``fhnn train`` with no options trains it — the default plan
-    (:func:`~fhnn.training.plans.default_settings`) and what the data's estimated fields call for
-    (:func:`~fhnn.training.plans.data_settings`). A folder that already holds a run resumes it —
-    with its stored settings when ``config`` is ``None``; a ``config`` that differs from them is
-    refused."""
-    path = None if isinstance(data, Dataset) else Path(data)
-    dataset = data if isinstance(data, Dataset) else read_dataset(data)
-    out = Path(out)
-    if (out / "run.json").exists():
-        run = Run.load(out)
-        changed = [] if config is None else run.config.differences(config)
-        if changed:
-            raise ConfigError(f"{out} holds a run started with other settings ({', '.join(changed)})")
-    else:
-        if config is None:
-            config = RunConfig().with_settings({**default_settings(dataset), **data_settings(dataset)})
-        run = Run.create(out, dataset, config, data_path=path)
-    run.train(dataset, callback=callback)
-    return run
 
 
 def load_run(folder: str | os.PathLike[str]) -> Run:

@@ -1,0 +1,202 @@
+"""``fhnn.predict``: forecasts from a trained run or ensemble, as ``fhnn predict``."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fhnn.api.fit import Fit
+from fhnn.data.table import (
+    OUTLIER_SIGMAS,
+    SECONDS_ONLY,
+    Table,
+    check_table_name,
+    drop_table_outliers,
+    read_forcing,
+    read_table,
+    seconds_to_date_times,
+    shift_times,
+    write_table,
+)
+from fhnn.errors import ConfigError
+from fhnn.evaluation.predict import FIT_WINDOW, SAMPLES, Forecast, predict_tracks
+from fhnn.files import check_output_path
+from fhnn.models.base import AbstractVectorField
+from fhnn.training.ensemble import INTERVAL
+
+
+@dataclass
+class Prediction:
+    """A forecast.
+
+    Attributes:
+        columns: ``traj_id, t, x, y, vx, vy`` [–, s, m, m, m/s, m/s] and, with a band, ``x_lo,
+            x_hi, …`` (5th and 95th percentiles); ``t`` on the clock of the run's data.
+        forecast: the underlying :class:`~fhnn.evaluation.predict.Forecast`.
+        notes: what is worth saying about it (no forcing, dropped glitches, the fit's residual).
+        warnings: what went wrong (diverged forecasts).
+    """
+
+    columns: dict[str, np.ndarray]
+    forecast: Forecast
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def to_pandas(self) -> Any:
+        """:attr:`columns` as a ``pandas.DataFrame``."""
+        import pandas as pd
+
+        return pd.DataFrame(self.columns)
+
+    def rows(self) -> list[str]:
+        """The forecast as CSV lines, the header first."""
+        names = list(self.columns)
+        lines = [",".join(names)]
+        for row in zip(*(self.columns[c] for c in names), strict=True):
+            lines.append(",".join(str(v) if isinstance(v, str) else repr(float(v)) for v in row))
+        return lines
+
+
+def predict(
+    run: Fit | str | os.PathLike[str],
+    duration: float,
+    *,
+    initial: Sequence[float] | None = None,
+    t0: float = 0.0,
+    history: Table | Any | None = None,
+    forcing: Any | None = None,
+    dt: float | None = None,
+    fit_window: float | None = None,
+    samples: int = SAMPLES,
+    outliers: float | None = OUTLIER_SIGMAS,
+    output: str | os.PathLike[str] | None = None,
+) -> Prediction:
+    """Forecast with a trained model from a given state or from the end of observed tracks.
+
+    Times are on the clock of the table the run's data were imported from (its seconds, or
+    seconds after its first date-time), for ``t0``, the history and the forcing alike.
+
+    Args:
+        run: a :class:`~fhnn.api.fit.Fit`, or a run or ensemble folder (a vector-field model).
+        duration: forecast length [s].
+        initial: start state ``x, y, vx, vy`` [m, m, m/s, m/s] at ``t0``.
+        t0: time of ``initial`` [s].
+        history: observed tracks (a path, a ``pandas.DataFrame`` or a table, columns as for
+            :func:`fhnn.import_table`): each is forecast from its last sample, its state fitted to
+            its last ``fit_window`` seconds.
+        forcing: known forces over the forecast (a path or ``pandas.DataFrame``: ``t, Fx, Fy[,
+            traj_id]``) [s, N, N]; default none.
+        dt: output step [s] (default: the history's median step, or 0.05).
+        fit_window: seconds of each history its start state is fitted to (default 1).
+        samples: start states drawn from each fit's uncertainty and forecast for the band.
+        outliers: drop a history position more than this many noise levels off the cubic through
+            its neighbours before fitting (``None``: keep all).
+        output: also write the forecast here (.csv or .parquet).
+
+    Returns:
+        The :class:`Prediction`; with a band (an ensemble, or a history) ``x, y, …`` are the
+        median and ``x_lo, x_hi, …`` the 5th and 95th percentiles.
+
+    Raises:
+        ConfigError: neither or both of ``initial`` and ``history``, bad values, or a model that
+            is not a vector field.
+        DataFormatError: an unreadable table or run.
+    """
+    if (initial is None) == (history is None):
+        raise ConfigError("give --initial x,y,vx,vy or --history TABLE (one of them)")
+    if output is not None:
+        check_output_path(Path(output))
+        check_table_name(output)
+    fit = run if isinstance(run, Fit) else None
+    runs = fit.runs if fit is not None else _runs(run)
+    models = []
+    for r in runs:
+        if not isinstance(r.state.best_model, AbstractVectorField):  # type: ignore[union-attr]
+            raise ConfigError(f"predict needs a vector-field model; a {r.kind!r} model steps on its own grid")
+        models.append(r.state.best_model)  # type: ignore[union-attr]
+    notes: list[str] = []
+    # every time given is on the clock of the table the run's data came from; the model's t = 0
+    # is that clock's `offset` (the imported table's first sample)
+    clock = runs[-1].clock()
+    origin, offset = clock["origin"], clock["offset"]
+    if "unknown" in clock:
+        notes.append(
+            f"note: the clock of the table behind {fit.folder if fit else run} is unknown — "
+            f"{clock['unknown']}: times are read as the model's own (its t = 0 the table's first sample)"
+        )
+    read_origin = SECONDS_ONLY if origin is None else origin
+    tracks = history if isinstance(history, Table) or history is None else read_table(history, read_origin)
+    glitches = 0
+    if tracks is not None:
+        tracks, glitches = drop_table_outliers(tracks, outliers)
+    forces = read_forcing(forcing, read_origin) if forcing is not None else None
+    dates = tracks is not None and tracks.time_origin is not None
+    if offset:
+        if tracks is not None:
+            tracks = shift_times(tracks, -offset)
+        if forces is not None:
+            forces = {k: (t - offset, f) for k, (t, f) in forces.items()}
+    if dt is None:
+        dt = (
+            float(np.median(np.concatenate([np.diff(tr.t) for tr in tracks.trajectories])))
+            if tracks
+            else 0.05
+        )
+    forecasts = [
+        predict_tracks(
+            model,
+            duration=duration,
+            dt=dt,
+            initial=None if initial is None else np.asarray(initial, dtype=float),
+            t0=t0 - offset,
+            history=tracks,
+            forcing_table=forces,
+            fit_window=FIT_WINDOW if fit_window is None else fit_window,
+            samples=samples,
+        )
+        for model in models
+    ]
+    banded = len(forecasts) > 1 or forecasts[0].samples is not None
+    result = Forecast.of_ensemble(forecasts, INTERVAL) if banded else forecasts[0]
+    notes += _notes(forces is None, glitches, outliers, tracks is not None, result)
+    warnings = []
+    failed = [i for i, ok in zip(result.ids, result.ok, strict=True) if not ok]
+    if failed:
+        warnings.append(f"warning: the forecast of {', '.join(failed)} diverged")
+    columns = result.columns()
+    columns["t"] = columns["t"] + offset
+    if dates:  # the history gave date-times: so does the forecast
+        columns["t"] = seconds_to_date_times(columns["t"], origin)
+    if output is not None:
+        write_table(columns, output)
+    return Prediction(columns, result, notes, warnings)
+
+
+def _runs(folder: str | os.PathLike[str]) -> list[Any]:
+    """The runs of the run or ensemble in ``folder`` (the data set is not needed)."""
+    from fhnn.training.ensemble import is_ensemble, member_folders
+    from fhnn.training.run import Run
+
+    return [Run.load(f) for f in (member_folders(folder) if is_ensemble(folder) else [Path(folder)])]
+
+
+def _notes(unforced: bool, glitches: int, sigmas: float | None, fitted: bool, result: Forecast) -> list[str]:
+    notes = []
+    if unforced:
+        notes.append("note: no --forcing: the forecast assumes no external force")
+    if glitches:
+        notes.append(
+            f"note: {glitches} position(s) of the history lay more than {sigmas:g} noise levels from the "
+            "cubic through their neighbours and were left out of the fit (--outliers off keeps them)"
+        )
+    if fitted:
+        notes.append(
+            f"fitted {len(result.ids)} track(s): RMS position residual median "
+            f"{float(np.median(result.fit_rms)):.3g} m (about the noise when the model explains them)"
+        )
+    return notes

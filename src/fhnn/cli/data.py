@@ -1,0 +1,186 @@
+"""``fhnn simulate``, ``fhnn import``, ``fhnn info`` and ``fhnn scenarios``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from fhnn.api.data import import_table as import_data
+from fhnn.api.data import info as data_info
+from fhnn.api.data import simulate as simulate_data
+from fhnn.cli import render
+from fhnn.cli.options import app
+from fhnn.data.derivatives import AUTO_SPLINE_ROWS
+from fhnn.data.table import GAP_STEPS, OUTLIER_SIGMAS
+from fhnn.physics.scenarios import SCENARIOS, UNITS
+from fhnn.training.settings import parse_params
+
+
+@app.command()
+def simulate(
+    scenario: Annotated[str, typer.Argument(help=f"Scenario: {', '.join(SCENARIOS)}.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="HDF5 file to write.")],
+    n_traj: Annotated[
+        int | None, typer.Option(help="Trajectories over all splits [default: the scenario's]")
+    ] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option(help="Train/val trajectory length in s [default: the scenario's]"),
+    ] = None,
+    test_duration: Annotated[
+        float | None, typer.Option(help="Test trajectory length in s [default: the scenario's]")
+    ] = None,
+    dt: Annotated[float | None, typer.Option(help="Sampling interval in s [default: the scenario's]")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every random draw.")] = 0,
+    actuation: Annotated[
+        str | None, typer.Option(help="none|random (sinusoidal forcing) [default: the scenario's]")
+    ] = None,
+    obs_noise: Annotated[
+        float | None,
+        typer.Option(help="Std of observation noise on stored states [default: the scenario's]"),
+    ] = None,
+    param: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--param",
+            "-p",
+            help="Scenario parameter NAME=VALUE (repeatable); see `fhnn scenarios`.",
+        ),
+    ] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or summary.")] = False,
+) -> None:
+    """Simulate a ground-truth data set (train/val/test splits) and write it as HDF5."""
+    dataset = simulate_data(
+        scenario,
+        output,
+        params=parse_params(param or [], "--param"),
+        progress=not quiet,
+        n_traj=n_traj,
+        duration=duration,
+        test_duration=test_duration,
+        dt=dt,
+        seed=seed,
+        actuation=actuation,
+        obs_noise=obs_noise,
+    )
+    if not quiet:
+        render.summary(data_info(dataset), str(output))
+
+
+@app.command("import")
+def import_table(
+    table: Annotated[
+        Path,
+        typer.Argument(
+            help="Table of samples (.csv or .parquet): traj_id, t, x, y[, vx, vy][, Fx, Fy] in SI "
+            "units; t in seconds or as ISO-8601 date-times; a CSV separated by commas, semicolons or tabs."
+        ),
+    ],
+    output: Annotated[Path, typer.Option("--output", "-o", help="HDF5 data set to write.")],
+    mass: Annotated[float, typer.Option("--mass", help="The body's dry mass M in kg.")],
+    area: Annotated[float, typer.Option("--area", help="The body's reference area A in m².")],
+    rho: Annotated[float, typer.Option("--rho", help="Fluid density in kg/m³.")] = 1000.0,
+    volume: Annotated[
+        float | None, typer.Option("--volume", help="Displaced volume V in m³ [default: M / rho]")
+    ] = None,
+    split: Annotated[
+        str,
+        typer.Option(
+            "--split", help="Percent of trajectories for train/val/test, each > 0 (each gets at least one)."
+        ),
+    ] = "70/20/10",
+    seed: Annotated[int, typer.Option(help="Seed of the split's permutation.")] = 0,
+    time_dependent: Annotated[
+        bool, typer.Option("--time-dependent", help="Let models learn a flow that changes in time.")
+    ] = False,
+    smoother: Annotated[
+        str,
+        typer.Option(
+            "--smoother",
+            help="Velocity estimator where the table has none: spline (trains the better model), "
+            "kalman (an RTS smoother, ~10x faster on large tables), or auto: the spline up to "
+            f"{AUTO_SPLINE_ROWS:,} rows, kalman above.",
+        ),
+    ] = "auto",
+    max_gap: Annotated[
+        str,
+        typer.Option(
+            "--max-gap",
+            help="Split a trajectory into pieces where two samples are more than this many seconds "
+            f"apart (inf: never); auto: more than {GAP_STEPS:g}x its median step. Pieces keep the "
+            "trajectory's split and are named ID#1, ID#2, ...; pieces under 3 samples are dropped "
+            "and counted.",
+        ),
+    ] = "auto",
+    outliers: Annotated[
+        str,
+        typer.Option(
+            "--outliers",
+            help="Drop a position more than this many noise levels from the cubic through its two "
+            "neighbours either side (a tracker's glitch; one among a track's first or last two samples "
+            "shows in its neighbours' residuals only, so it must be larger to be seen), counted in the "
+            "summary; off: keep every sample.",
+        ),
+    ] = f"{OUTLIER_SIGMAS:g}",
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
+) -> None:
+    """Import measured trajectories from a table into a data set: rows in any order, irregular times,
+    unequal lengths; rows with missing values are dropped and counted; a trajectory with a long gap
+    (--max-gap) becomes pieces; glitches (--outliers) are dropped and counted; velocities the table
+    lacks are estimated from the positions (a smoother held to the noise level they show).
+    Trajectories are split into train/val/test by a seeded permutation."""
+    dataset = import_data(
+        table,
+        output,
+        mass=mass,
+        area=area,
+        rho=rho,
+        volume=volume,
+        split=split,
+        seed=seed,
+        time_dependent=time_dependent,
+        smoother=smoother,
+        max_gap=max_gap,
+        outliers=outliers,
+    )
+    if not quiet:
+        render.summary(data_info(dataset), str(output))
+
+
+@app.command()
+def info(
+    file: Annotated[Path, typer.Argument(help="An fhnn HDF5 data set.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+) -> None:
+    """Describe a data set: scenario, parameters, split sizes, and the ranges of r, speed and σ covered."""
+    import json
+
+    summary = data_info(file)
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2, sort_keys=True))
+    else:
+        render.summary(summary, str(file))
+
+
+@app.command()
+def scenarios() -> None:
+    """List the scenarios: their parameters with units and defaults, and default data-set sizes."""
+    for name, cls in SCENARIOS.items():
+        d = cls.defaults
+        sizes = (
+            f"{d.n_traj} trajectories split {'/'.join(f'{100 * f:g}' for f in d.split)} %, train/val "
+            f"{d.duration:g} s, test {d.test_duration:g} s, dt {d.dt:g} s, actuation {d.actuation}"
+            + (f", observation noise {d.obs_noise:g}" if d.obs_noise else "")
+        )
+        render.stdout.print(f"\n[bold]{name}[/bold] — {cls.summary}", soft_wrap=True)
+        render.stdout.print(f"default data set: {sizes}", soft_wrap=True, highlight=False)
+        table = Table()
+        table.add_column("parameter")
+        table.add_column("default", justify="right")
+        table.add_column("unit")
+        for key, value in cls().to_dict().items():
+            table.add_row(key, str(value), UNITS.get(key, ""))
+        render.stdout.print(table)
