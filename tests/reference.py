@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -42,74 +43,80 @@ def _lamb_oseen(gamma: float, rc: float) -> Callable[[float, float], tuple[float
     return u
 
 
+def _reference_flow(sc: Scenario) -> tuple[Any, Any]:
+    """``scenario``'s flow ``(x, y, t) -> (u, v)`` [m/s] and, for a wave, the fluid's material
+    acceleration ``(x, y, t) -> (ax, ay)`` [m/s²] (else ``None``)."""
+    material = None
+    if isinstance(sc, SolidBodyVortex):
+
+        def flow(x: float, y: float, t: float) -> tuple[float, float]:
+            return -sc.omega * y, sc.omega * x
+
+    elif isinstance(sc, TimeVaryingVortex):
+
+        def flow(x: float, y: float, t: float) -> tuple[float, float]:
+            g = sc.gamma * (1.0 + sc.gamma_modulation * math.sin(2 * math.pi * t / sc.gamma_period))
+            return _lamb_oseen(g, sc.core_radius)(x, y)
+
+    elif isinstance(sc, NoisyFlow):
+        vortex = _lamb_oseen(sc.gamma, sc.core_radius)
+        modes = np.asarray(sc.modes, dtype=float).reshape(-1, 4)
+
+        def flow(x: float, y: float, t: float) -> tuple[float, float]:
+            ux, uy = vortex(x, y)
+            s = modes[:, 3] * np.sin(modes[:, 0] * x + modes[:, 1] * y + modes[:, 2])
+            return ux - float(np.sum(s * modes[:, 1])), uy + float(np.sum(s * modes[:, 0]))
+
+    elif isinstance(sc, SteadyVortex):
+        flow = lambda x, y, t: _lamb_oseen(sc.gamma, sc.core_radius)(x, y)  # noqa: E731
+
+    elif isinstance(sc, Obstacle):
+        U, R2, k = sc.stream_speed, sc.radius**2, sc.circulation / (2 * math.pi)
+
+        def flow(x: float, y: float, t: float) -> tuple[float, float]:
+            r2 = x * x + y * y
+            ux = U * (1 - R2 / r2) + 2 * U * R2 * y * y / r2**2 - k * y / r2
+            uy = -2 * U * R2 * x * y / r2**2 + k * x / r2
+            return ux, uy
+
+    elif isinstance(sc, Wave):
+        w = 2 * math.pi / sc.period
+        kw = w * w / sc.gravity
+        a = sc.amplitude
+
+        def flow(x: float, y: float, t: float) -> tuple[float, float]:
+            th = kw * x - w * t
+            e = a * w * math.exp(kw * y)
+            return e * math.cos(th), e * math.sin(th)
+
+        def material(x: float, y: float, t: float) -> tuple[float, float]:
+            th = kw * x - w * t
+            e = math.exp(kw * y)
+            return a * w * w * e * math.sin(th), -a * w * w * e * math.cos(th) + a * a * w * w * kw * e * e
+
+    else:  # pragma: no cover - every registered scenario is handled above
+        raise TypeError(f"no reference implementation for {type(sc).__name__}")
+    return flow, material
+
+
 def reference_vector_field(scenario: Scenario) -> ReferenceField:
     """The equations of motion of ``scenario`` (resolved: noisy modes drawn) in plain NumPy."""
     sc = scenario
     fluid_inertia = isinstance(sc, Wave)
+    M, rho, A = sc.mass, sc.rho, sc.area  # type: ignore[attr-defined]
+    flow, material = _reference_flow(sc)
     if isinstance(sc, SolidBodyVortex):
-        M, rho, A = sc.mass, sc.rho, sc.area
-
-        def flow(x: float, y: float, t: float) -> tuple[float, float]:
-            return -sc.omega * y, sc.omega * x
 
         def coeffs(r: float, sigma: float) -> tuple[float, float, float, float]:
             m = sc.m_a_base + sc.m_a_amplitude * math.tanh(sc.m_a_rate * sigma)
             return m, m, sc.c_q, sc.c_l
 
     else:
-        M, rho, A = sc.mass, sc.rho, sc.area  # type: ignore[attr-defined]
 
         def coeffs(r: float, sigma: float) -> tuple[float, float, float, float]:
             c_q = sc.cq_inf + sc.cq_0 / (1.0 + sigma / sc.cq_sigma_ref)  # type: ignore[attr-defined]
             wall = 1.0 + sc.wall_strength * (sc.radius / r) ** 2 if isinstance(sc, Obstacle) else 1.0
             return sc.m_ax * wall, sc.m_ay * wall, c_q, sc.c_l  # type: ignore[attr-defined]
-
-        if isinstance(sc, TimeVaryingVortex):
-
-            def flow(x: float, y: float, t: float) -> tuple[float, float]:
-                g = sc.gamma * (1.0 + sc.gamma_modulation * math.sin(2 * math.pi * t / sc.gamma_period))
-                return _lamb_oseen(g, sc.core_radius)(x, y)
-
-        elif isinstance(sc, NoisyFlow):
-            vortex = _lamb_oseen(sc.gamma, sc.core_radius)
-            modes = np.asarray(sc.modes, dtype=float).reshape(-1, 4)
-
-            def flow(x: float, y: float, t: float) -> tuple[float, float]:
-                ux, uy = vortex(x, y)
-                s = modes[:, 3] * np.sin(modes[:, 0] * x + modes[:, 1] * y + modes[:, 2])
-                return ux - float(np.sum(s * modes[:, 1])), uy + float(np.sum(s * modes[:, 0]))
-
-        elif isinstance(sc, SteadyVortex):
-            flow = lambda x, y, t: _lamb_oseen(sc.gamma, sc.core_radius)(x, y)  # noqa: E731
-
-        elif isinstance(sc, Obstacle):
-            U, R2, k = sc.stream_speed, sc.radius**2, sc.circulation / (2 * math.pi)
-
-            def flow(x: float, y: float, t: float) -> tuple[float, float]:
-                r2 = x * x + y * y
-                ux = U * (1 - R2 / r2) + 2 * U * R2 * y * y / r2**2 - k * y / r2
-                uy = -2 * U * R2 * x * y / r2**2 + k * x / r2
-                return ux, uy
-
-        elif isinstance(sc, Wave):
-            w = 2 * math.pi / sc.period
-            kw = w * w / sc.gravity
-            a = sc.amplitude
-
-            def flow(x: float, y: float, t: float) -> tuple[float, float]:
-                th = kw * x - w * t
-                e = a * w * math.exp(kw * y)
-                return e * math.cos(th), e * math.sin(th)
-
-            def material(x: float, y: float, t: float) -> tuple[float, float]:
-                th = kw * x - w * t
-                e = math.exp(kw * y)
-                return a * w * w * e * math.sin(th), -a * w * w * e * math.cos(
-                    th
-                ) + a * a * w * w * kw * e * e
-
-        else:  # pragma: no cover - every registered scenario is handled above
-            raise TypeError(f"no reference implementation for {type(sc).__name__}")
 
     def f(t: float, s: np.ndarray, force: np.ndarray) -> np.ndarray:
         x, y, vx, vy = s

@@ -223,85 +223,113 @@ def _reject_unknown(cls: type[Config], names: typing.Iterable[str]) -> None:
 
 
 def coerce(hint: Any, value: Any, what: str) -> Any:
-    """Convert ``value`` (possibly a string from the command line) to the type ``hint``."""
+    """Convert ``value`` (possibly a string from the command line) to the type ``hint``.
+
+    Raises:
+        ConfigError: a value that is not of the type, naming ``what``.
+    """
     if isinstance(hint, type) and issubclass(hint, Config):
-        if isinstance(value, hint):
-            return value
-        if isinstance(value, Mapping):
-            return hint.from_dict(value)
-        raise ConfigError(f"{what} must be a section of settings, got {value!r}")
+        return _section(hint, value, what)
     origin = typing.get_origin(hint)
-    args = typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
-        if value is None or (isinstance(value, str) and value.lower() in ("none", "null")):
-            if type(None) in args:
-                return None
-        errors = []
-        for arg in args:
-            if arg is type(None):
-                continue
-            try:
-                return coerce(arg, value, what)
-            except ConfigError as exc:
-                errors.append(str(exc))
-        raise ConfigError(errors[0] if errors else f"{what}: bad value {value!r}")
+        return _union(typing.get_args(hint), value, what)
     if origin is typing.Literal:
-        if value not in args:
-            raise ConfigError(f"{what} must be one of {', '.join(map(repr, args))}, got {value!r}")
-        return value
+        return _literal(typing.get_args(hint), value, what)
     if origin is tuple:
-        if isinstance(value, str):
-            try:
-                value = json.loads(value)
-            except json.JSONDecodeError:
-                value = [v for v in value.split(",") if v.strip()]
-        if not isinstance(value, list | tuple):
-            raise ConfigError(f"{what} must be a list, got {value!r}")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(coerce(args[0], v, what) for v in value)
-        if args and len(args) != len(value):
-            raise ConfigError(f"{what} must have {len(args)} entries, got {len(value)}")
-        return tuple(coerce(a, v, what) for a, v in zip(args, value, strict=False)) if args else tuple(value)
-    if hint is bool:
-        if isinstance(value, bool):
-            return value
-        if isinstance(value, str) and value.lower() in (
-            "true",
-            "1",
-            "yes",
-            "on",
-            "false",
-            "0",
-            "no",
-            "off",
-        ):
-            return value.lower() in ("true", "1", "yes", "on")
-        raise ConfigError(f"{what} must be true or false, got {value!r}")
-    if hint is int:
-        if isinstance(value, bool):
-            raise ConfigError(f"{what} must be an integer, got {value!r}")
-        try:
-            as_float = float(value)
-        except (TypeError, ValueError):
-            raise ConfigError(f"{what} must be an integer, got {value!r}") from None
-        if not as_float.is_integer():
-            raise ConfigError(f"{what} must be an integer, got {value!r}")
-        return int(as_float)
-    if hint is float:
-        if isinstance(value, bool):
-            raise ConfigError(f"{what} must be a number, got {value!r}")
-        try:
-            out = float(value)
-        except (TypeError, ValueError):
-            raise ConfigError(f"{what} must be a number, got {value!r}") from None
-        if not math.isfinite(out):
-            raise ConfigError(f"{what} must be finite, got {value!r}")
-        return out
-    if hint is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"{what} must be a string, got {value!r}")
+        return _tuple(typing.get_args(hint), value, what)
+    scalar = _SCALARS.get(hint)
+    return scalar(value, what) if scalar is not None else value
+
+
+def _section(hint: type[Config], value: Any, what: str) -> Config:
+    if isinstance(value, hint):
         return value
+    if isinstance(value, Mapping):
+        return hint.from_dict(value)
+    raise ConfigError(f"{what} must be a section of settings, got {value!r}")
+
+
+def _union(args: tuple[Any, ...], value: Any, what: str) -> Any:
+    none = value is None or (isinstance(value, str) and value.lower() in ("none", "null"))
+    if none and type(None) in args:
+        return None
+    errors = []
+    for arg in args:
+        if arg is type(None):
+            continue
+        try:
+            return coerce(arg, value, what)
+        except ConfigError as exc:
+            errors.append(str(exc))
+    raise ConfigError(errors[0] if errors else f"{what}: bad value {value!r}")
+
+
+def _literal(args: tuple[Any, ...], value: Any, what: str) -> Any:
+    if value not in args:
+        raise ConfigError(f"{what} must be one of {', '.join(map(repr, args))}, got {value!r}")
     return value
+
+
+def _tuple(args: tuple[Any, ...], value: Any, what: str) -> tuple[Any, ...]:
+    if isinstance(value, str):
+        try:
+            value = json.loads(value)
+        except json.JSONDecodeError:
+            value = [v for v in value.split(",") if v.strip()]
+    if not isinstance(value, list | tuple):
+        raise ConfigError(f"{what} must be a list, got {value!r}")
+    if len(args) == 2 and args[1] is Ellipsis:
+        return tuple(coerce(args[0], v, what) for v in value)
+    if args and len(args) != len(value):
+        raise ConfigError(f"{what} must have {len(args)} entries, got {len(value)}")
+    return tuple(coerce(a, v, what) for a, v in zip(args, value, strict=False)) if args else tuple(value)
+
+
+#: The words a boolean setting takes (case-insensitive), and what each means.
+_BOOLEAN_WORDS = {"true": True, "1": True, "yes": True, "on": True}
+_BOOLEAN_WORDS.update({"false": False, "0": False, "no": False, "off": False})
+
+
+def _bool(value: Any, what: str) -> bool:
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.lower() in _BOOLEAN_WORDS:
+        return _BOOLEAN_WORDS[value.lower()]
+    raise ConfigError(f"{what} must be true or false, got {value!r}")
+
+
+def _int(value: Any, what: str) -> int:
+    if isinstance(value, bool):
+        raise ConfigError(f"{what} must be an integer, got {value!r}")
+    try:
+        as_float = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be an integer, got {value!r}") from None
+    if not as_float.is_integer():
+        raise ConfigError(f"{what} must be an integer, got {value!r}")
+    return int(as_float)
+
+
+def _float(value: Any, what: str) -> float:
+    if isinstance(value, bool):
+        raise ConfigError(f"{what} must be a number, got {value!r}")
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be a number, got {value!r}") from None
+    if not math.isfinite(out):
+        raise ConfigError(f"{what} must be finite, got {value!r}")
+    return out
+
+
+def _str(value: Any, what: str) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(f"{what} must be a string, got {value!r}")
+    return value
+
+
+#: Converters of the scalar types a setting may have.
+_SCALARS: dict[Any, Any] = {bool: _bool, int: _int, float: _float, str: _str}
 
 
 def _plain(value: Any) -> Any:

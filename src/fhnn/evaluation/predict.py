@@ -336,6 +336,83 @@ def _forces_at(
 MAX_FORECAST_SAMPLES = 1_000_000
 
 
+def _check_forecast(duration: float, dt: float, fit_window: float, samples: int) -> None:
+    """Refuse a forecast's bad duration, step, fit window or sample count (a ConfigError)."""
+    if not (np.isfinite(duration) and duration > 0):
+        raise ConfigError(f"--duration must be > 0 s, got {duration!r}")
+    if not (np.isfinite(dt) and 0 < dt <= duration):
+        raise ConfigError(f"--dt must be > 0 s and at most the duration, got {dt!r}")
+    if duration / dt > MAX_FORECAST_SAMPLES:
+        raise ConfigError(
+            f"--duration {duration:g} s at --dt {dt:g} s is {duration / dt:.3g} output samples per "
+            f"track; at most {MAX_FORECAST_SAMPLES:,} (a longer --dt or a shorter --duration)"
+        )
+    if not (np.isfinite(fit_window) and fit_window > 0):
+        raise ConfigError(f"--fit-window must be > 0 s, got {fit_window!r}")
+    if samples < 0:
+        raise ConfigError(f"--samples must be >= 0, got {samples}")
+
+
+def _given_start(initial: np.ndarray, t0: float) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """Track ids, start states ``(1, 4)``, start times ``(1,)`` [s] and fit RMS (NaN) of a
+    forecast from one given state."""
+    initial = np.asarray(initial, dtype=float)
+    if initial.shape != (4,) or not np.all(np.isfinite(initial)):
+        raise ConfigError(f"the initial state is x, y, vx, vy: four finite numbers, got {initial.tolist()}")
+    if not np.isfinite(t0):
+        raise ConfigError(f"--t0 must be finite, got {t0!r}")
+    return ["initial"], initial[None], np.array([float(t0)]), np.array([np.nan])
+
+
+def _fitted_starts(
+    model: AbstractVectorField,
+    history: Table,
+    forcing_table: dict[str | None, tuple[np.ndarray, np.ndarray]] | None,
+    fit_window: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each track's state at its last sample, fitted to its last ``fit_window`` seconds
+    (:func:`estimate_states`): states ``(n, 4)``, fit RMS ``(n,)`` [m], covariances ``(n, 4, 4)``."""
+    recent = []
+    for tr in history.trajectories:
+        keep = tr.t >= tr.t[-1] - fit_window - 1e-9
+        if keep.sum() < 3:
+            keep[-3:] = True
+        recent.append(keep)
+    size = max(int(k.sum()) for k in recent)
+    n = len(recent)
+    t = np.zeros((n, size))
+    pos = np.zeros((n, size, 2))
+    force = np.zeros((n, size, 2))
+    mask = np.zeros((n, size), dtype=bool)
+    guess = np.zeros((n, 2))
+    for i, (tr, keep) in enumerate(zip(history.trajectories, recent, strict=True)):
+        k = int(keep.sum())
+        tt = tr.t[keep]
+        t[i, :k], t[i, k:] = tt, tt[-1] + PAD_STEP * np.arange(1, size - k + 1)
+        pos[i, :k], mask[i, :k] = tr.pos[keep], True
+        f = (
+            tr.force[keep]
+            if tr.force is not None
+            else _forces_at(forcing_table, tr.traj_id, tt, required=False)
+        )
+        if f is not None:
+            force[i, :k] = f
+        guess[i] = tr.vel[keep][0] if tr.vel is not None else (pos[i, 1] - pos[i, 0]) / (tt[1] - tt[0])
+    return estimate_states(model, t, pos, mask=mask, force=force, guess_velocity=guess, covariance=True)
+
+
+def _draw_starts(starts: np.ndarray, cov: np.ndarray, samples: int, seed: int) -> np.ndarray:
+    """``samples`` start states per track ``(samples * n, 4)`` (sample-major), drawn from the
+    normal distribution of each fitted state ``starts (n, 4)`` and covariance ``cov (n, 4, 4)``."""
+    rng = np.random.default_rng(seed)
+    sym = 0.5 * (cov + cov.swapaxes(1, 2))
+    drawn = np.stack(
+        [rng.multivariate_normal(starts[i], sym[i], samples, method="eigh") for i in range(len(starts))],
+        axis=1,
+    )
+    return drawn.reshape(-1, 4)
+
+
 def predict_tracks(
     model: AbstractVectorField,
     *,
@@ -358,64 +435,16 @@ def predict_tracks(
     (:func:`~fhnn.data.table.read_forcing`), which must then cover it; without one there are none.
     From a history, ``samples`` further start states per track are drawn (seeded by ``seed``) from
     the normal distribution of the fit's covariance and forecast too (``Forecast.samples``)."""
-    if not (np.isfinite(duration) and duration > 0):
-        raise ConfigError(f"--duration must be > 0 s, got {duration!r}")
-    if not (np.isfinite(dt) and 0 < dt <= duration):
-        raise ConfigError(f"--dt must be > 0 s and at most the duration, got {dt!r}")
-    if duration / dt > MAX_FORECAST_SAMPLES:
-        raise ConfigError(
-            f"--duration {duration:g} s at --dt {dt:g} s is {duration / dt:.3g} output samples per "
-            f"track; at most {MAX_FORECAST_SAMPLES:,} (a longer --dt or a shorter --duration)"
-        )
-    if not (np.isfinite(fit_window) and fit_window > 0):
-        raise ConfigError(f"--fit-window must be > 0 s, got {fit_window!r}")
+    _check_forecast(duration, dt, fit_window, samples)
     if (initial is None) == (history is None):
         raise ConfigError("give either an initial state or a history to start from, not both")
-    if samples < 0:
-        raise ConfigError(f"--samples must be >= 0, got {samples}")
-    fit_rms: np.ndarray
     cov: np.ndarray | None = None
     if initial is not None:
-        initial = np.asarray(initial, dtype=float)
-        if initial.shape != (4,) or not np.all(np.isfinite(initial)):
-            raise ConfigError(
-                f"the initial state is x, y, vx, vy: four finite numbers, got {initial.tolist()}"
-            )
-        if not np.isfinite(t0):
-            raise ConfigError(f"--t0 must be finite, got {t0!r}")
-        ids, starts, start_t, fit_rms = ["initial"], initial[None], np.array([float(t0)]), np.array([np.nan])
+        ids, starts, start_t, fit_rms = _given_start(initial, t0)
     else:
         assert history is not None
         ids = [tr.traj_id for tr in history.trajectories]
-        recent = []
-        for tr in history.trajectories:
-            keep = tr.t >= tr.t[-1] - fit_window - 1e-9
-            if keep.sum() < 3:
-                keep[-3:] = True
-            recent.append(keep)
-        size = max(int(k.sum()) for k in recent)
-        n = len(ids)
-        t = np.zeros((n, size))
-        pos = np.zeros((n, size, 2))
-        force = np.zeros((n, size, 2))
-        mask = np.zeros((n, size), dtype=bool)
-        guess = np.zeros((n, 2))
-        for i, (tr, keep) in enumerate(zip(history.trajectories, recent, strict=True)):
-            k = int(keep.sum())
-            tt = tr.t[keep]
-            t[i, :k], t[i, k:] = tt, tt[-1] + PAD_STEP * np.arange(1, size - k + 1)
-            pos[i, :k], mask[i, :k] = tr.pos[keep], True
-            f = (
-                tr.force[keep]
-                if tr.force is not None
-                else _forces_at(forcing_table, tr.traj_id, tt, required=False)
-            )
-            if f is not None:
-                force[i, :k] = f
-            guess[i] = tr.vel[keep][0] if tr.vel is not None else (pos[i, 1] - pos[i, 0]) / (tt[1] - tt[0])
-        starts, fit_rms, cov = estimate_states(
-            model, t, pos, mask=mask, force=force, guess_velocity=guess, covariance=True
-        )
+        starts, fit_rms, cov = _fitted_starts(model, history, forcing_table, fit_window)
         start_t = np.array([tr.t[-1] for tr in history.trajectories])
     steps = max(1, round(duration / dt))
     times = start_t[:, None] + np.linspace(0.0, duration, steps + 1)[None, :]
@@ -427,12 +456,7 @@ def predict_tracks(
     n = len(ids)
     draws = 0
     if cov is not None and samples > 0:
-        rng = np.random.default_rng(seed)
-        sym = 0.5 * (cov + cov.swapaxes(1, 2))
-        drawn_starts = np.stack(
-            [rng.multivariate_normal(starts[i], sym[i], samples, method="eigh") for i in range(n)], axis=1
-        )
-        starts = np.concatenate([starts, drawn_starts.reshape(-1, 4)])
+        starts = np.concatenate([starts, _draw_starts(starts, cov, samples, seed)])
         draws = samples
     # the tracks' forecasts and those of their drawn start states, as one rollout
     rep = lambda a: np.broadcast_to(a, (1 + draws, *a.shape)).reshape(-1, *a.shape[1:])  # noqa: E731

@@ -89,6 +89,97 @@ def reproduce(
         return _reproduce(config, out, datasets, jobs, workers, ray_address, progress, started)
 
 
+class _Schedule:
+    """The data sets and training jobs a reproduction still has to run, as tasks: each data set's
+    jobs are scheduled as soon as it exists; finished tasks' files are written under ``out``.
+
+    Args:
+        out: the reproduction folder.
+        datasets, jobs: all of the reproduction's data sets and training jobs.
+        ray_address: Ray workers get and return data sets as bytes; local ones use the files.
+        report: told ``("jobs", done, total, label)`` as tasks finish.
+    """
+
+    def __init__(
+        self,
+        out: Path,
+        datasets: list[DataJob],
+        jobs: list[ModelJob],
+        ray_address: str | None,
+        report: ProgressFn,
+    ) -> None:
+        self.out, self.datasets, self.ray, self.report = out, datasets, bool(ray_address), report
+        self.by_id: dict[str, DataJob] = {d.id: d for d in datasets}
+        self.jobs_by_id: dict[str, ModelJob] = {j.id: j for j in jobs}
+        self.todo = [d for d in datasets if not (out / "data" / d.filename).is_file()]
+        self.todo_jobs = [j for j in jobs if not (out / "jobs" / j.id / "result.json").is_file()]
+        self.total = len(self.todo) + len(self.todo_jobs)
+        self.done = 0
+        self.data_bytes: dict[str, bytes] = {}
+        self.groups: dict[str, list[ModelJob]] = {}  # a task of several jobs (seeds_together): its jobs
+        cached = len(datasets) - len(self.todo) + len(jobs) - len(self.todo_jobs)
+        report("jobs", 0, self.total, f"{cached} cached")
+
+    def first(self) -> list[Task]:
+        """The tasks to start with: the missing data sets, and the jobs of those that exist."""
+        tasks = [self.data_task(d) for d in self.todo]
+        for d in self.datasets:
+            if d not in self.todo:
+                tasks += self.model_tasks(d)
+        return tasks
+
+    def data_arg(self, d: DataJob) -> bytes | str:
+        """How a worker gets ``d``: its path (local), or its bytes (Ray)."""
+        path = self.out / "data" / d.filename
+        if not self.ray:
+            return str(path.resolve())
+        if d.id not in self.data_bytes:
+            self.data_bytes[d.id] = path.read_bytes()
+        return self.data_bytes[d.id]
+
+    def data_task(self, d: DataJob) -> Task:
+        """The task that simulates ``d`` (into its file, or returning its bytes to a Ray driver)."""
+        target = None if self.ray else str((self.out / "data" / d.filename).resolve())
+        return Task(d.id, "data", (d.spec, target))
+
+    def model_tasks(self, d: DataJob) -> list[Task]:
+        """A task per unfinished job of ``d``, or per table cell for jobs trained together."""
+        tasks: dict[object, list[ModelJob]] = {}
+        for j in self.todo_jobs:
+            if j.data.id == d.id:
+                tasks.setdefault(j.cell if j.together else j.id, []).append(j)
+        out = []
+        for members in tasks.values():
+            if len(members) == 1:
+                out.append(Task(members[0].id, "model", (members[0].spec, self.data_arg(d), d.filename)))
+            else:
+                name = "+".join(j.id for j in members)
+                self.groups[name] = members
+                out.append(Task(name, "models", ([j.spec for j in members], self.data_arg(d), d.filename)))
+        return out
+
+    def on_done(self, task: Task, output: object) -> list[Task]:
+        """Write a finished task's files; returns the tasks it makes possible."""
+        self.done += 1
+        if task.function == "data":
+            if isinstance(output, bytes):
+                write_atomic(self.out / "data" / self.by_id[task.name].filename, output)
+            self.report("jobs", self.done, self.total, self.by_id[task.name].label)
+            return self.model_tasks(self.by_id[task.name])
+        if task.function == "models":
+            assert isinstance(output, list)
+            members = self.groups[task.name]
+            for job, files in zip(members, output, strict=True):
+                write_folder_atomic(self.out / "jobs" / job.id, files)
+            self.done += len(members) - 1
+            self.report("jobs", self.done, self.total, " + ".join(j.label for j in members))
+            return []
+        assert isinstance(output, dict)
+        write_folder_atomic(self.out / "jobs" / task.name, output)
+        self.report("jobs", self.done, self.total, self.jobs_by_id[task.name].label)
+        return []
+
+
 def _reproduce(
     config: ReproduceConfig,
     out: Path,
@@ -113,83 +204,23 @@ def _reproduce(
     report = progress or (lambda *a: None)
     xla_flags = FAST_COMPILE_FLAGS if config.fast_compile else ""
 
-    def run(tasks: list[Task], on_done: Callable[[Task, object], None]) -> None:
-        if ray_address:
-            run_ray(tasks, on_done, address=ray_address, cache_dir=cache_dir, xla_flags=xla_flags)
-        else:
-            run_local(tasks, on_done, workers=workers, cache_dir=cache_dir, xla_flags=xla_flags)
-
     # 1–2. data sets, and the training jobs of each as soon as its data set exists
-    by_id: dict[str, DataJob] = {d.id: d for d in datasets}
-    jobs_by_id: dict[str, ModelJob] = {j.id: j for j in jobs}
-    todo = [d for d in datasets if not (out / "data" / d.filename).is_file()]
-    todo_jobs = [j for j in jobs if not (out / "jobs" / j.id / "result.json").is_file()]
-    total = len(todo) + len(todo_jobs)
-    done = 0
-    report("jobs", done, total, f"{len(datasets) - len(todo) + len(jobs) - len(todo_jobs)} cached")
-    # local workers read and write the data sets in place; Ray workers get and return bytes
-    data_bytes: dict[str, bytes] = {}
-
-    def data_arg(d: DataJob) -> bytes | str:
-        path = out / "data" / d.filename
-        if not ray_address:
-            return str(path.resolve())
-        if d.id not in data_bytes:
-            data_bytes[d.id] = path.read_bytes()
-        return data_bytes[d.id]
-
-    groups: dict[str, list[ModelJob]] = {}  # a task of several jobs (seeds_together): its jobs
-
-    def model_tasks(d: DataJob) -> list[Task]:
-        """A task per unfinished job of ``d``, or per table cell for jobs trained together."""
-        tasks: dict[object, list[ModelJob]] = {}
-        for j in todo_jobs:
-            if j.data.id == d.id:
-                tasks.setdefault(j.cell if j.together else j.id, []).append(j)
-        out = []
-        for members in tasks.values():
-            if len(members) == 1:
-                out.append(Task(members[0].id, "model", (members[0].spec, data_arg(d), d.filename)))
-            else:
-                name = "+".join(j.id for j in members)
-                groups[name] = members
-                out.append(Task(name, "models", ([j.spec for j in members], data_arg(d), d.filename)))
-        return out
-
-    def on_done(task: Task, output: object) -> list[Task]:
-        nonlocal done
-        done += 1
-        if task.function == "data":
-            if isinstance(output, bytes):
-                write_atomic(out / "data" / by_id[task.name].filename, output)
-            report("jobs", done, total, by_id[task.name].label)
-            return model_tasks(by_id[task.name])
-        if task.function == "models":
-            assert isinstance(output, list)
-            members = groups[task.name]
-            for job, files in zip(members, output, strict=True):
-                write_folder_atomic(out / "jobs" / job.id, files)
-            done += len(members) - 1
-            report("jobs", done, total, " + ".join(j.label for j in members))
-            return []
-        assert isinstance(output, dict)
-        write_folder_atomic(out / "jobs" / task.name, output)
-        report("jobs", done, total, jobs_by_id[task.name].label)
-        return []
-
-    def data_task(d: DataJob) -> Task:
-        target = None if ray_address else str((out / "data" / d.filename).resolve())
-        return Task(d.id, "data", (d.spec, target))
-
-    first = [data_task(d) for d in todo]
-    for d in datasets:
-        if d not in todo:
-            first += model_tasks(d)
-    run(first, on_done)
+    schedule = _Schedule(out, datasets, jobs, ray_address, report)
+    if ray_address:
+        run_ray(
+            schedule.first(), schedule.on_done, address=ray_address, cache_dir=cache_dir, xla_flags=xla_flags
+        )
+    else:
+        run_local(
+            schedule.first(), schedule.on_done, workers=workers, cache_dir=cache_dir, xla_flags=xla_flags
+        )
+    todo, todo_jobs = schedule.todo, schedule.todo_jobs
 
     # 3. the report, unless nothing changed since it was last built
     stamp = hashlib.sha256(
-        json.dumps([source_digest((".",)), config.to_dict(), sorted(jobs_by_id)], sort_keys=True).encode()
+        json.dumps(
+            [source_digest((".",)), config.to_dict(), sorted(schedule.jobs_by_id)], sort_keys=True
+        ).encode()
     ).hexdigest()
     stamp_path = out / "report.stamp"
     fresh = (
