@@ -22,8 +22,8 @@ from _common import dataset
 import fhnn
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.models.registry import MODELS
+from fhnn.training.plans import PAPER_TRAIN
 from fhnn.training.run import Run, RunConfig
-from fhnn.training.trainer import TrainConfig
 
 PAPER_5S = {"hnn": 1.77, "lnn": 5.85e10, "dhn": 1.02, "fhnn": 6.09e-4}
 
@@ -60,7 +60,7 @@ def main() -> None:
             if (folder / "run.json").exists():  # resume (or reuse) an earlier run of this benchmark
                 run = Run.load(folder, expect_model=kind)
             else:
-                config = RunConfig(kind=kind, train=TrainConfig(steps=args.steps, val_every=500))
+                config = RunConfig(kind=kind, train=PAPER_TRAIN.replace(steps=args.steps, val_every=500))
                 run = Run.create(folder, ds, config, data_path=path)
             run.train(ds)
             secs = time.perf_counter() - t0

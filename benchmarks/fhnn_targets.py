@@ -42,7 +42,7 @@ import fhnn
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.runtime import default_cache_dir, use_compilation_cache
-from fhnn.training.plans import DEFAULT_PLAN, data_settings, default_settings, get_plan, is_noisy
+from fhnn.training.plans import DEFAULT_PLAN, data_settings, default_settings, get_plan
 from fhnn.training.run import Run, RunConfig
 
 
@@ -51,7 +51,7 @@ def train(name: str, folder: Path, options: dict, plan: str | None, seed: int | 
     train`` does, or with ``plan``, ``options`` over it; returns the data, the run and its seconds."""
     ds, path = dataset(name, folder, seed=seed)
     given = {f"{part}.{k}": v for part in ("model", "train") for k, v in options.get(part, {}).items()}
-    start = get_plan(plan).settings("fhnn", noisy=is_noisy(ds)) if plan else default_settings(ds)
+    start = get_plan(plan).settings("fhnn") if plan else default_settings(ds)
     config = RunConfig().with_settings({**start, **data_settings(ds), **given})
     plan = plan or DEFAULT_PLAN
     print(

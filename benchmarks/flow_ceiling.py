@@ -32,7 +32,6 @@ from _common import dataset
 
 from fhnn.evaluation.recovery import flow_recovery
 from fhnn.models.registry import MODELS
-from fhnn.training.plans import DEFAULT_PLAN, PLANS
 from fhnn.training.run import RunConfig
 
 SCENARIOS = ("steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "wave")
@@ -42,7 +41,7 @@ def ceiling(ds, iterations: int, width: int | None = None, points: int = 8000) -
     """Fit the stream net of a fresh default-plan FHNN (of ``width`` when given) to the true flow
     at ``points`` training samples; the width fitted, the relative L2 error there and on the
     recovery grid."""
-    settings = {f"model.{k}": v for k, v in PLANS[DEFAULT_PLAN].model["fhnn"].items()}
+    settings = {}  # the default plan's model: the configuration defaults
     if width is not None:
         settings["model.width"] = width
     model_config = RunConfig().with_settings(settings).model

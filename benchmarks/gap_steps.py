@@ -2,7 +2,7 @@
 RK4 step (what the multi-step loss takes per sample interval) against the interval's length, on
 the states of issue 14's tracks (``benchmarks/own_data.py``'s simulation: ``steady_vortex`` with
 actuation, observed about every 0.05 s), under the simulator's own equations without forcing.
-It sets :data:`fhnn.data.table.GAP_STEPS`, the multiple of a track's median step beyond which
+It sets :data:`fhnn.data.cleaning.GAP_STEPS`, the multiple of a track's median step beyond which
 ``fhnn import`` splits the track (``--max-gap auto``).
 
 Usage::
@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from own_data import OBSERVED, make_data
 
-from fhnn.data.table import GAP_STEPS
+from fhnn.data.cleaning import GAP_STEPS
 from fhnn.physics.integrators import rk4_step
 
 #: RK4 steps of the reference over one interval.

@@ -1,6 +1,6 @@
 """Where an L-BFGS polish iteration's time goes: the iteration against its objective.
 
-The default plan's polish (``fhnn.training.trainer.quasi_newton_step``: optax's L-BFGS with a
+The default plan's polish (``fhnn.training.quasi_newton.quasi_newton_step``: optax's L-BFGS with a
 zoom line search, on the parameters raveled into one vector) is most of a default-plan run. This
 times one iteration, as the trainer runs it, against one evaluation of its objective and gradient
 on the same pairs, and against the same iteration on the model's parameter tree (optax on each

@@ -21,9 +21,10 @@ from pathlib import Path
 import numpy as np
 from own_data import add_glitches, make_data, run_cli
 
+from fhnn.data.cleaning import OUTLIER_SIGMAS, drop_outliers
 from fhnn.data.dataset import read_dataset
 from fhnn.data.derivatives import lagrange_residuals, noise_level
-from fhnn.data.table import OUTLIER_SIGMAS, Trajectory, drop_outliers, write_table
+from fhnn.data.table import Trajectory, write_table
 
 
 def kept_samples(path: Path) -> set[tuple[str, float]]:

@@ -49,8 +49,9 @@ import numpy as np
 
 from fhnn.cli.app import main as fhnn
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
+from fhnn.data.observation import observe
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
-from fhnn.data.table import observe, write_table
+from fhnn.data.table import write_table
 from fhnn.errors import DataFormatError
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.physics.scenarios import get_scenario

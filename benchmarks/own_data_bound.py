@@ -35,7 +35,7 @@ interval of an unbiased estimate is at least ``2 · 1.645 · sd`` wide.
 each solved from a start state of its own, as ``fhnn train``'s multi-step loss sees the data
 (windows of 40 samples on estimated velocities): the information such windows hold. With
 ``--start-prior`` each window's start is known besides to the import's position noise and
-velocity error (:func:`fhnn.data.table.start_errors`, what the loss's weighting assumes). The
+velocity error (:func:`fhnn.data.observation.start_errors`, what the loss's weighting assumes). The
 loss's windows overlap and its nets are smooth, so for it these numbers are a guide, not a strict
 bound.
 
@@ -61,7 +61,7 @@ import numpy as np
 from own_data import data_suffix, make_data, with_truth
 
 from fhnn.data.dataset import read_dataset
-from fhnn.data.table import start_errors
+from fhnn.data.observation import start_errors
 from fhnn.evaluation.recovery import SIGMA_BANDS, drag_terms, flow_box, visited_r_sigma
 from fhnn.physics.actuation import actuation_force
 from fhnn.physics.body import AbstractLaw, CoefficientLaws, Constant

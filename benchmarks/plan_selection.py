@@ -29,7 +29,7 @@ from _common import dataset
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.runtime import default_cache_dir, use_compilation_cache
-from fhnn.training.plans import get_plan, is_noisy
+from fhnn.training.plans import get_plan, is_noisy, noisy_model_settings
 from fhnn.training.run import Run, RunConfig
 from fhnn.training.trainer import Trainer, TrainState
 
@@ -62,7 +62,9 @@ def main() -> None:
     use_compilation_cache(default_cache_dir())
     args.out.mkdir(parents=True, exist_ok=True)
     ds, path = dataset(args.scenario, args.out, args.data_seed)
-    settings = get_plan(args.plan).settings("fhnn", noisy=is_noisy(ds)) if args.plan else {}
+    settings = get_plan(args.plan or "adam").settings("fhnn")  # no plan: the paper's settings
+    if is_noisy(ds):
+        settings.update({f"model.{k}": v for k, v in noisy_model_settings("fhnn").items()})
     settings.update({k: _value(v) for k, v in (s.split("=", 1) for s in args.set)})
     config = RunConfig().with_settings(settings)
     tag = "_".join(f"{k.split('.')[-1]}{v}" for k, v in sorted(settings.items()) if not isinstance(v, list))

@@ -26,9 +26,13 @@ from pathlib import Path
 
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import get_scenario
+from fhnn.training.plans import PLANS
 from fhnn.training.run import Run, RunConfig
 from fhnn.training.tracks import TrackFit, track_pieces
 from fhnn.training.trainer import TrainConfig
+
+#: The paper's run (the ``adam`` plan): what these measurements were taken with.
+PAPER_RUN = RunConfig().with_settings(PLANS["adam"].settings("fhnn"))
 
 
 def iteration_seconds(model, split) -> float:
@@ -63,8 +67,8 @@ def main() -> None:
             sc, n_traj=args.tracks, duration=seconds, test_duration=seconds, dt=0.05, seed=0
         )
         ds = simulate_dataset(sc, config)
-        with tempfile.TemporaryDirectory() as folder:  # the default FHNN for these data
-            model = Run.create(Path(folder) / "run", ds, RunConfig()).skeleton()
+        with tempfile.TemporaryDirectory() as folder:  # the paper's FHNN (width 64) for these data
+            model = Run.create(Path(folder) / "run", ds, PAPER_RUN).skeleton()
         whole = ds.train
         pieces, _ = track_pieces(whole, args.budget, seed=5)
         per_sample = measure(model, whole, f"{seconds:g} s tracks, whole split")

@@ -54,7 +54,7 @@ import fhnn
 from fhnn.executables import STORE_ENV, StoredProgram
 from fhnn.models.registry import MODELS
 from fhnn.runtime import use_compilation_cache
-from fhnn.training.plans import DEFAULT_PLAN, PLANS
+from fhnn.training.plans import DEFAULT_PLAN, PAPER_FHNN, PAPER_TRAIN, PLANS
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import (
     ADAM_CHUNK,
@@ -73,12 +73,16 @@ BEFORE = {"solid_body_vortex": 296.0, "steady_vortex": 495.0}
 AUTHORS_SECONDS = 1978.0
 
 
+#: The paper's run (the ``adam`` plan): what these measurements were taken with.
+PAPER_RUN = RunConfig().with_settings(PLANS["adam"].settings("fhnn"))
+
+
 def fresh(ds, seed: int = 0):
-    return MODELS["fhnn"].make(RunConfig().model, MODELS["fhnn"].arguments(ds), seed)
+    return MODELS["fhnn"].make(PAPER_RUN.model, MODELS["fhnn"].arguments(ds), seed)
 
 
 def phases(ds) -> None:
-    cfg = TrainConfig()
+    cfg = PAPER_TRAIN
     tr = Trainer(cfg, ds.train, ds.val)
     state = tr.init(fresh(ds))
     m, o, ac = state.model, state.opt_state, AdamSettings.of(cfg)
@@ -146,7 +150,7 @@ def phases(ds) -> None:
 
 def compile_times(ds, path: Path) -> None:
     print("2. compilation of the Adam program the trainer runs (first two calls minus two calls)")
-    cfg = TrainConfig(steps=1000)
+    cfg = PAPER_TRAIN.replace(steps=1000)
     with tempfile.TemporaryDirectory() as cache:
         script = (
             "import sys, time; sys.path.insert(0, 'benchmarks');"
@@ -181,8 +185,10 @@ _SCRIPT_HEAD = (
     "use_compilation_cache(sys.argv[1]); from _common import seconds_per_call; import numpy as np;"
     "from fhnn.data.dataset import read_dataset; from fhnn.models.registry import MODELS;"
     "from fhnn.training.run import RunConfig; from fhnn.evaluation.predict import estimate_states;"
+    "from fhnn.training.plans import PLANS;"
     "ds = read_dataset(sys.argv[2]); kind = MODELS['fhnn'];"
-    "m = kind.make(RunConfig().model, kind.arguments(ds), 0); sp = ds.test;"
+    "m = kind.make(RunConfig().with_settings(PLANS['adam'].settings('fhnn')).model, kind.arguments(ds), 0);"
+    "sp = ds.test;"
 )
 
 #: A new process's first rollout of a model over 5 s of the test split (what ``fhnn evaluate``
@@ -265,7 +271,7 @@ def first_call(ds, steps: int, seed: int = 0, stored: bool = True) -> float:
     :class:`~fhnn.executables.StoredProgram` of :func:`adam_chunk`, whose exported module a
     process stored before is read untraced from the compilation cache folder), or the plain jitted
     program."""
-    cfg = TrainConfig(steps=steps, seed=seed)
+    cfg = PAPER_TRAIN.replace(steps=steps, seed=seed)
     tr = Trainer(cfg, ds.train, ds.val)
     state = tr.init(fresh(ds, seed))
     one = jnp.asarray(1)
@@ -284,7 +290,7 @@ def seeds_as_one(ds, n: int) -> None:
     ``fhnn train`` runs (the default plan: derivative loss alone, no penalty, its width)."""
     print(f"3. {n} seeds as one program (vmap over stacked models) against {n} sequential steps")
     plan = PLANS[DEFAULT_PLAN]
-    _seeds_as_one(ds, n, "all terms and the penalty, width 64", TrainConfig(), {}, True)
+    _seeds_as_one(ds, n, "all terms and the penalty, width 64", PAPER_TRAIN, PAPER_FHNN, True)
     _seeds_as_one(ds, n, "the default plan's step", plan.train, plan.model.get("fhnn", {}), False)
 
 

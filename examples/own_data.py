@@ -39,8 +39,9 @@ import pyarrow.csv as pacsv
 
 from fhnn.cli.app import main as fhnn_main
 from fhnn.data.dataset import read_dataset
+from fhnn.data.observation import observe
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
-from fhnn.data.table import observe, write_table
+from fhnn.data.table import write_table
 from fhnn.physics.scenarios import get_scenario
 
 

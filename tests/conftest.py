@@ -40,8 +40,12 @@ from hypothesis import HealthCheck, settings
 from fhnn.data.dataset import Dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.experiments.executors import FAST_COMPILE_FLAGS
+from fhnn.models.fhnn import FHNNConfig
 from fhnn.physics.scenarios import SCENARIOS, get_scenario
 from fhnn.runtime import CACHE_ENV, use_compilation_cache
+from fhnn.training.plans import PAPER_FHNN, PAPER_TRAIN, PLANS
+from fhnn.training.run import RunConfig
+from fhnn.training.train_config import TrainConfig
 
 #: Under pytest-xdist the controller makes the folder and its workers inherit it, so a program one
 #: worker compiled the other loads (both compile the same small FHNN programs); the controller
@@ -112,3 +116,22 @@ def scenario_dataset(request: pytest.FixtureRequest) -> Dataset:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
+
+
+# The paper's settings (the ``adam`` plan), which were the configuration defaults when these tests
+# were written: the tests below that build configurations by hand start from them, so that their
+# runs train as they always have (the defaults are now what ``fhnn train`` trains).
+
+
+def paper_train(**fields: object) -> TrainConfig:
+    """The paper's training configuration (``PLANS["adam"].train``) with ``fields`` changed."""
+    return PAPER_TRAIN.replace(**fields)
+
+
+def paper_fhnn(**fields: object) -> FHNNConfig:
+    """The paper's FHNN configuration (width 64, windows unweighted) with ``fields`` changed."""
+    return FHNNConfig(**{**PAPER_FHNN, **fields})
+
+
+#: The paper's run configuration (FHNN and training of the ``adam`` plan).
+PAPER_RUN = RunConfig().with_settings(PLANS["adam"].settings("fhnn"))

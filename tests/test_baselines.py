@@ -13,7 +13,9 @@ from fhnn.evaluation.rollout import rollout
 from fhnn.models.baselines import MLPConfig, build_baseline
 from fhnn.physics.actuation import actuation_force, no_actuation, sample_actuation
 from fhnn.physics.integrators import adaptive_solve
-from fhnn.training.trainer import TrainConfig, Trainer
+from fhnn.training.trainer import Trainer
+
+from .conftest import paper_train
 
 OMEGA2 = 4.0  # spring constant per unit mass [1/s²]
 DRY_MASS = 2.0  # the mass a model is told [kg]
@@ -93,7 +95,7 @@ def fit(kind, f, forced, steps=1500, lbfgs=100):
     train, val, test = make_splits(f, forced)
     model = build_baseline(kind, MLPConfig(width=32, depth=2), stats_of(train), jax.random.PRNGKey(0))
     trainer = Trainer(
-        TrainConfig(steps=steps, val_every=250, lr=3e-3, batch_size=128, lbfgs_steps=lbfgs, lbfgs_pairs=1500),
+        paper_train(steps=steps, val_every=250, lr=3e-3, batch_size=128, lbfgs_steps=lbfgs, lbfgs_pairs=1500),
         train,
         val,
     )

@@ -1,5 +1,5 @@
 """An ensemble's Adam phases trained as one ``vmap``-ed program
-(:func:`fhnn.training.trainer.run_together`): the same members as trained one after another, a
+(:func:`fhnn.training.together.run_together`): the same members as trained one after another, a
 member whose guard fires leaves the group, and what cannot run together is recognised."""
 
 from __future__ import annotations
@@ -10,20 +10,15 @@ import pytest
 
 import fhnn.training.ensemble as ensemble_module
 import fhnn.training.trainer as trainer_module
-from fhnn.models.fhnn import FHNNConfig
 from fhnn.training.ensemble import interval, train_members
 from fhnn.training.run import Run, RunConfig
-from fhnn.training.trainer import (
-    TrainConfig,
-    Trainer,
-    bootstrap_weights,
-    can_run_together,
-    draw_batch,
-)
+from fhnn.training.sampling import bootstrap_weights, draw_batch
+from fhnn.training.together import can_run_together
+from fhnn.training.trainer import Trainer
 
-from .conftest import arrays, small_dataset
+from .conftest import arrays, paper_fhnn, paper_train, small_dataset
 
-CONFIG = TrainConfig(steps=24, val_every=8, batch_size=16, lbfgs_steps=3, lbfgs_pairs=64, lambda_flow=1e-6)
+CONFIG = paper_train(steps=24, val_every=8, batch_size=16, lbfgs_steps=3, lbfgs_pairs=64, lambda_flow=1e-6)
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +30,7 @@ def members(folder, ds, seeds=(0, 1, 2), config=CONFIG):
     folder.mkdir(exist_ok=True)
     return [
         Run.create(
-            folder / f"seed-{s}", ds, RunConfig(model=FHNNConfig(width=8), train=config.replace(seed=s))
+            folder / f"seed-{s}", ds, RunConfig(model=paper_fhnn(width=8), train=config.replace(seed=s))
         )
         for s in seeds
     ]

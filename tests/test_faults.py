@@ -21,15 +21,16 @@ import equinox as eqx
 import numpy as np
 import pytest
 
+import fhnn.training.adam as adam_module
 import fhnn.training.trainer as trainer_module
 from fhnn.cli.app import FAULT_ENV, main
 from fhnn.data.dataset import write_dataset
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import JOURNAL, commit_files, folder_lock, recover_files
-from fhnn.training.run import Run, RunConfig
-from fhnn.training.trainer import TrainConfig, stop_reason
+from fhnn.training.run import Run
+from fhnn.training.trainer import stop_reason
 
-from .conftest import small_dataset
+from .conftest import PAPER_RUN, paper_train, small_dataset
 
 #: The child takes Ctrl-C as a terminal's process does: a suite started as a background job of a
 #: non-interactive shell passes SIGINT down ignored, and a Python started so never raises
@@ -111,7 +112,7 @@ def test_a_commit_killed_at_any_rename_leaves_all_old_or_all_new_files(
 
 def test_a_full_disk_keeps_the_previous_checkpoint(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     dataset = small_dataset("solid_body_vortex", n_traj=4, duration=1.0, test_duration=2.0)
-    run = Run.create(tmp_path / "run", dataset, RunConfig.from_dict({"model": {"width": 8}}))
+    run = Run.create(tmp_path / "run", dataset, PAPER_RUN.with_settings({"model.width": 8}))
     run.state = trainer_module.Trainer(run.train_config, dataset.train, dataset.val).init(run.skeleton())
     run.save()
     before = {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()}
@@ -143,12 +144,12 @@ def _history(vals: list[float], skipped: list[float] | None = None, every: int =
 
 
 def test_stop_reasons_name_what_happened() -> None:
-    config = TrainConfig(stop_rising=6)
+    config = paper_train(stop_rising=6)
     assert stop_reason(_history([5, 4, 3, 4, 5, 6, 7, 8]), config) is None  # five rises
     assert stop_reason(_history([5, 4, 3, 4, 5, 6, 7, 8, 9]), config) == (
         "the validation loss rose at 6 validations in a row (steps 30–90)"
     )
-    assert stop_reason(_history([5, 4, 3, 4, 5, 6, 7, 8, 9]), TrainConfig(stop_rising=0)) is None
+    assert stop_reason(_history([5, 4, 3, 4, 5, 6, 7, 8, 9]), paper_train(stop_rising=0)) is None
     assert stop_reason(_history([3, 2], [0.0, 10.0]), config) == (
         "every Adam step from 10 to 20 was skipped (non-finite loss or gradient)"
     )
@@ -169,7 +170,7 @@ def test_a_guard_stops_training_keeps_the_best_model_and_says_so(
     def chunk(model, opt_state, i, n, *rest):
         return model, opt_state, {"loss": np.nan, "deriv": np.nan, "skipped": float(fault == "nan") * n}
 
-    monkeypatch.setattr(trainer_module, "adam_chunk", chunk)
+    monkeypatch.setattr(adam_module, "adam_chunk", chunk)
     monkeypatch.setattr(
         trainer_module.Trainer,
         "validate",

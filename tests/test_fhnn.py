@@ -14,15 +14,14 @@ import pytest
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.evaluation.metrics import trajectory_metrics
 from fhnn.evaluation.rollout import rollout
-from fhnn.models.fhnn import FHNN, FHNNConfig, cap, uncap
+from fhnn.models.fhnn import FHNN, cap, uncap
 from fhnn.models.fhnn import fhnn_arguments as build_arguments
 from fhnn.models.registry import MODELS
 from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.flows import AbstractFlow
 from fhnn.training.run import Run, RunConfig, check_trainable
-from fhnn.training.trainer import TrainConfig
 
-from .conftest import arrays, small_dataset
+from .conftest import PAPER_RUN, arrays, paper_fhnn, paper_train, small_dataset
 
 
 class StreamOnly(AbstractFlow):
@@ -74,7 +73,7 @@ def test_cap_maps():
         back = np.asarray(cap(jnp.asarray(uncap(values, np.asarray(caps), kind)), caps, kind))
         np.testing.assert_allclose(back, values, rtol=1e-12)
     with pytest.raises(ConfigError, match="must lie inside the range of the sigmoid cap map"):
-        FHNNConfig(cap_map="sigmoid")  # default init (10, 10, 0.5, 2) is below C/2
+        paper_fhnn(cap_map="sigmoid")  # default init (10, 10, 0.5, 2) is below C/2
 
 
 def test_metrics_on_hand_made_arrays():
@@ -113,7 +112,7 @@ def test_short_training_lowers_validation_error(data, tmp_path):
     run = Run.create(
         tmp_path / "r",
         data,
-        RunConfig(model=FHNNConfig(width=32), train=TrainConfig(steps=600, val_every=100, lr=3e-3)),
+        RunConfig(model=paper_fhnn(width=32), train=paper_train(steps=600, val_every=100, lr=3e-3)),
     )
     state = run.train(data, save=False)
     first, best = state.history[0], state.best_val
@@ -125,8 +124,8 @@ def test_short_training_lowers_validation_error(data, tmp_path):
 
 
 def test_checkpoint_round_trip_and_exact_resume(data, tmp_path):
-    cfg = FHNNConfig(width=16)
-    tc = TrainConfig(steps=40, val_every=10, batch_size=32, warmup_steps=4, lbfgs_pairs=200)
+    cfg = paper_fhnn(width=16)
+    tc = paper_train(steps=40, val_every=10, batch_size=32, warmup_steps=4, lbfgs_pairs=200)
     straight = Run.create(tmp_path / "a", data, RunConfig(model=cfg, train=tc))
     straight.train(data)
     stopped = Run.create(tmp_path / "b", data, RunConfig(model=cfg, train=tc))
@@ -146,7 +145,7 @@ def test_checkpoint_round_trip_and_exact_resume(data, tmp_path):
 
 def test_bad_checkpoints_and_data(data, tmp_path):
     run = Run.create(
-        tmp_path / "a", data, RunConfig(model=FHNNConfig(width=8), train=TrainConfig(steps=2, val_every=1))
+        tmp_path / "a", data, RunConfig(model=paper_fhnn(width=8), train=paper_train(steps=2, val_every=1))
     )
     run.train(data)
     with pytest.raises(DataFormatError, match="checkpoint is a 'fhnn' model, not 'hnn'"):
@@ -167,7 +166,7 @@ def test_bad_checkpoints_and_data(data, tmp_path):
 def test_rollout_tolerance_error_is_far_below_reported_errors(data):
     # a random (untrained) FHNN is a rough vector field; its rollout at the default tolerance must
     # agree with a 1000x tighter solve far below the accuracy targets (1e-5 m)
-    model = MODELS["fhnn"].make(FHNNConfig(width=16), build_arguments(data), 3)
+    model = MODELS["fhnn"].make(paper_fhnn(width=16), build_arguments(data), 3)
     loose = rollout(model, data.test)
     tight = rollout(model, data.test, rtol=1e-13, atol=1e-13)
     assert loose.ok.all() and tight.ok.all()
@@ -179,7 +178,7 @@ def test_far_field_term_extrapolates_solid_body_rotation_and_is_not_penalised():
 
     ds = small_dataset("solid_body_vortex")
     args = build_arguments(ds)
-    model = MODELS["fhnn"].make(FHNNConfig(width=8), args, 0)
+    model = MODELS["fhnn"].make(paper_fhnn(width=8), args, 0)
     flow = model.flow
     # zero the MLP, set Q so that ψ = −(Ω/2) r²: ψ_scale · ½ q ξ² with ξ = x / L
     zeroed = jax.tree_util.tree_map(lambda x: jnp.zeros_like(x) if eqx.is_array(x) else x, flow.mlp)
@@ -382,8 +381,8 @@ def test_warmup_fits_the_linear_flow_first_so_rotation_extrapolates(tmp_path):
     from fhnn.physics.flows import SolidBodyRotation
 
     ds = small_dataset("solid_body_vortex", n_traj=8, duration=2.0)
-    config = TrainConfig(steps=0, warmup_steps=60, lbfgs_pairs=1500, val_every=20)
-    run = Run.create(tmp_path / "r", ds, RunConfig(model=FHNNConfig(width=16), train=config))
+    config = paper_train(steps=0, warmup_steps=60, lbfgs_pairs=1500, val_every=20)
+    run = Run.create(tmp_path / "r", ds, RunConfig(model=paper_fhnn(width=16), train=config))
     initial = run.skeleton()
     state = run.train(ds, save=False)
     model = state.best_model
@@ -407,15 +406,15 @@ def test_coefficients_held_outside_the_training_radii():
     lo, hi = args["r_range"]
     radius = np.hypot(ds.train.states[..., 0], ds.train.states[..., 1])
     assert (lo, hi) == (radius.min(), radius.max())
-    held = MODELS["fhnn"].make(FHNNConfig(width=8), args, 0).coefficients
-    free = MODELS["fhnn"].make(FHNNConfig(width=8, r_extrapolation="net"), args, 0).coefficients
+    held = MODELS["fhnn"].make(paper_fhnn(width=8), args, 0).coefficients
+    free = MODELS["fhnn"].make(paper_fhnn(width=8, r_extrapolation="net"), args, 0).coefficients
     at = lambda c, r: np.asarray(c(jnp.asarray(r), jnp.asarray(0.3)))  # noqa: E731
     np.testing.assert_array_equal(at(held, 5 * hi), at(held, hi))
     np.testing.assert_array_equal(at(held, 0.0), at(held, lo))
     np.testing.assert_array_equal(at(held, 0.5 * (lo + hi)), at(free, 0.5 * (lo + hi)))
     assert not np.allclose(at(free, 5 * hi), at(free, hi))
     # coefficients_in_r=False: functions of σ alone, the same net at r = 0 otherwise
-    flat = MODELS["fhnn"].make(FHNNConfig(width=8, coefficients_in_r=False), args, 0).coefficients
+    flat = MODELS["fhnn"].make(paper_fhnn(width=8, coefficients_in_r=False), args, 0).coefficients
     for r in (lo, 0.5 * (lo + hi), 5 * hi):
         np.testing.assert_array_equal(at(flat, r), at(free, 0.0))
     assert flat.r_range is None and held.r_range is not None  # no radius range it would not use
@@ -424,10 +423,10 @@ def test_coefficients_held_outside_the_training_radii():
 
 def test_training_phase_settings_are_checked():
     with pytest.raises(ConfigError, match="warmup_steps"):
-        TrainConfig(warmup_steps=-1)
+        paper_train(warmup_steps=-1)
     with pytest.raises(ConfigError, match="lbfgs_memory"):
-        TrainConfig(lbfgs_memory=0)
-    assert TrainConfig(steps=0).steps == 0
+        paper_train(lbfgs_memory=0)
+    assert paper_train(steps=0).steps == 0
 
 
 class _WaveCoefficients(eqx.Module):
@@ -456,7 +455,7 @@ def test_harmonic_time_basis_carries_a_travelling_wave_exactly():
 
     ds = small_dataset("wave", n_traj=6, duration=3.0)
     args = {**build_arguments(ds), "time_scale": 20.0}
-    model = MODELS["fhnn"].make(FHNNConfig(width=8), args, 0)
+    model = MODELS["fhnn"].make(paper_fhnn(width=8), args, 0)
     flow = model.flow
     assert flow.time_modes == 16 and flow.mlp.out_size == 33 and flow.mlp.in_size == 2
     wave = DeepWaterWave(amplitude=0.2, period=4.0)
@@ -494,7 +493,7 @@ def test_a_run_stored_before_the_harmonic_time_basis_loads_with_the_papers_form(
     """A run whose stored configuration lacks ``time_modes`` (written before the field existed)
     is rebuilt with ψ(x, y, t) = MLP(ξ, τ), the form its weights are, not the current default."""
     ds = small_dataset("time_varying_vortex", n_traj=6, duration=2.0)
-    config = RunConfig().with_settings({"model.width": 4, "model.time_modes": 0, "train.steps": 3})
+    config = PAPER_RUN.with_settings({"model.width": 4, "model.time_modes": 0, "train.steps": 3})
     run = Run.create(tmp_path / "run", ds, config)
     run.train(ds)
     info_path = tmp_path / "run" / "run.json"
@@ -516,7 +515,7 @@ def test_slow_weight_weighs_each_window_by_its_relative_speed(data, power):
     from fhnn.models.fhnn import SLOW_WEIGHT_CAP, build_fhnn
 
     args = build_arguments(data)
-    model = build_fhnn(FHNNConfig(width=8, slow_weight=power), key=jax.random.PRNGKey(3), **args)
+    model = build_fhnn(paper_fhnn(width=8, slow_weight=power), key=jax.random.PRNGKey(3), **args)
     # a flow that is not zero, so that σ is not the body's own speed
     model = eqx.tree_at(lambda m: m.eom.flow.quadratic, model, jnp.asarray([0.3, 0.1, -0.2]))
     plain = dataclasses.replace(model, slow_weight=0.0)
@@ -541,7 +540,7 @@ def test_slow_weight_weighs_each_window_by_its_relative_speed(data, power):
     assert weight[np.argmin(sigma)] == weight.max() and weight[np.argmax(sigma)] == weight.min()
     assert (raw.max() > SLOW_WEIGHT_CAP) == (power == 12.0)
     with pytest.raises(ConfigError, match="slow_weight"):
-        FHNNConfig(slow_weight=-1.0)
+        paper_fhnn(slow_weight=-1.0)
 
 
 def test_quasi_newton_phases_hold_the_slow_window_weights_fixed(data):
@@ -555,7 +554,7 @@ def test_quasi_newton_phases_hold_the_slow_window_weights_fixed(data):
     from fhnn.training.trainer import Trainer, data_loss, quasi_newton_objective
 
     args = build_arguments(data)
-    model = build_fhnn(FHNNConfig(width=8, slow_weight=2.0), key=jax.random.PRNGKey(3), **args)
+    model = build_fhnn(paper_fhnn(width=8, slow_weight=2.0), key=jax.random.PRNGKey(3), **args)
     model = eqx.tree_at(lambda m: m.eom.flow.quadratic, model, jnp.asarray([0.3, 0.1, -0.2]))
     pairs = Windows.of(data.train, 2)
     batch = {k: v[np.linspace(0, len(pairs) - 1, 40).astype(int)] for k, v in pairs.as_jax().items()}
@@ -564,7 +563,7 @@ def test_quasi_newton_phases_hold_the_slow_window_weights_fixed(data):
     np.testing.assert_allclose(weight, slow_window_weights(sigma, 2.0), rtol=1e-13)
     assert dataclasses.replace(model, slow_weight=0.0).quasi_newton_weights(batch) is None
 
-    config = TrainConfig(w_step=1.0)
+    config = paper_train(w_step=1.0)
     scales = (jnp.asarray([0.5, 0.4, 0.2, 0.3]), jnp.asarray([0.02, 0.03, 0.01, 0.01]))
     params, static = eqx.partition(model, eqx.is_array)
     flat, unravel = jax.flatten_util.ravel_pytree(params)
@@ -580,7 +579,7 @@ def test_quasi_newton_phases_hold_the_slow_window_weights_fixed(data):
     assert mismatch({**batch, "weight": weight}) < 1e-6
     assert mismatch(batch) > 1e-3
 
-    trainer = Trainer(TrainConfig(lbfgs_steps=1, lbfgs_pairs=64, val_every=1), data.train, data.val)
+    trainer = Trainer(paper_train(lbfgs_steps=1, lbfgs_pairs=64, val_every=1), data.train, data.val)
     state = trainer.polish(trainer.init(model))
     qn = trainer.batch(trainer.quasi_newton_windows(), jax.random.PRNGKey(trainer.config.seed + 4))
     held = data_loss(

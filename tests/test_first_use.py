@@ -16,7 +16,7 @@ from fhnn.data.dataset import write_dataset
 from fhnn.errors import DataFormatError
 from fhnn.training.run import Run
 
-from .conftest import small_dataset
+from .conftest import paper_fhnn, paper_train, small_dataset
 
 
 def cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
@@ -232,18 +232,16 @@ def test_progress_is_told_after_every_step_of_each_phase(data_file: Path) -> Non
     fault tests' kills land there; the CLI throttles its bar."""
     from fhnn.data.dataset import read_dataset
     from fhnn.models.registry import MODELS
-    from fhnn.training.trainer import ADAM_CHUNK, TrainConfig, Trainer
+    from fhnn.training.trainer import ADAM_CHUNK, Trainer
 
     ds = read_dataset(data_file)
     told: list[tuple[str, int]] = []
     steps = 2 * ADAM_CHUNK + 20
-    config = TrainConfig(
+    config = paper_train(
         steps=steps, val_every=ADAM_CHUNK + 30, warmup_steps=2, lbfgs_steps=2, lbfgs_pairs=50, batch_size=8
     )
     trainer = Trainer(config, ds.train, ds.val, on_step=lambda phase, step: told.append((phase, step)))
-    model = MODELS["fhnn"].make(
-        MODELS["fhnn"].config.from_dict({"width": 8}), MODELS["fhnn"].arguments(ds), 0
-    )
+    model = MODELS["fhnn"].make(paper_fhnn(width=8), MODELS["fhnn"].arguments(ds), 0)
     state = trainer.polish(trainer.run(trainer.warmup(trainer.init(model))))
     assert state.step == steps + 2
     adam = [step for phase, step in told if phase == "adam"]

@@ -20,6 +20,16 @@ import xarray as xr
 
 from fhnn.cli.app import main
 from fhnn.data import derivatives
+from fhnn.data.cleaning import (
+    GAP_STEPS,
+    OUTLIER_SIGMAS,
+    drop_outliers,
+    parse_max_gap,
+    parse_outliers,
+    split_at_gaps,
+)
+from fhnn.data.clock import seconds_to_date_times
+from fhnn.data.conversion import split_counts
 from fhnn.data.dataset import Split, read_dataset, write_dataset
 from fhnn.data.derivatives import (
     AUTO_SPLINE_ROWS,
@@ -30,22 +40,8 @@ from fhnn.data.derivatives import (
     rts_smooth,
     smooth_derivatives,
 )
-from fhnn.data.table import (
-    GAP_STEPS,
-    OUTLIER_SIGMAS,
-    PAD_STEP,
-    Trajectory,
-    drop_outliers,
-    observe,
-    parse_max_gap,
-    parse_outliers,
-    read_table,
-    seconds_to_date_times,
-    split_at_gaps,
-    split_counts,
-    start_errors,
-    write_table,
-)
+from fhnn.data.observation import observe, start_errors
+from fhnn.data.table import PAD_STEP, Trajectory, read_table, write_table
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError
 from fhnn.evaluation import predict as predict_module
@@ -59,9 +55,10 @@ from fhnn.physics.dynamics import EquationsOfMotion
 from fhnn.physics.integrators import rk4_step
 from fhnn.training.plans import ESTIMATED_VELOCITY_LR_C_L, ESTIMATED_VELOCITY_TRACK_STEPS, data_settings
 from fhnn.training.run import Run
-from fhnn.training.trainer import TrainConfig, Trainer
+from fhnn.training.train_config import TrainConfig
+from fhnn.training.trainer import Trainer
 
-from .conftest import small_dataset
+from .conftest import paper_fhnn, paper_train, small_dataset
 
 NOISE = 1e-3
 
@@ -417,13 +414,13 @@ def test_the_model_drift_weighting_follows_the_models_own_start_sensitivity() ->
     assert plain > 1e-7
     loss = {}
     for drift, var in (("model", [1.0, 1.0, 1e8, 1e8]), ("free", [1.0, 1e8])):
-        cfg = TrainConfig(shoot=W, shoot_noise=(1e-3, 10.0), shoot_drift=drift)
+        cfg = paper_train(shoot=W, shoot_noise=(1e-3, 10.0), shoot_drift=drift)
         assert cfg.start_variance(1)["start_var"].shape == (1, len(var))
         loss[drift] = float(model.loss_terms({**batch, "start_var": jnp.asarray([var])}, scales)["shoot"])
     # seen: 3.5e-8 and 0.031 of the mean square; free flight's τ·δv cannot take up the damped drift
     assert loss["model"] < 1e-5 * plain and loss["free"] > 1e-2 * plain, (loss, plain)
     with pytest.raises(ConfigError, match="shoot_drift must be one of free, model, got 'nope'"):
-        TrainConfig(shoot_drift="nope")
+        paper_train(shoot_drift="nope")
 
 
 def test_estimated_velocities_train_with_their_start_errors_weighed(fine, imported) -> None:
@@ -825,7 +822,7 @@ def test_windows_can_skip_each_trajectorys_first_samples_and_tile_it(fine, rng) 
     assert "start" not in skipped.as_jax()
     with pytest.raises(ConfigError, match="no trajectory has a window of 6 samples starting at sample 999"):
         Windows.of(split, 6, skip=999)
-    config = TrainConfig(shoot=6, shoot_skip=4, lbfgs_stride=5, lbfgs_pairs=10**6, w_deriv=0.0)
+    config = paper_train(shoot=6, shoot_skip=4, lbfgs_stride=5, lbfgs_pairs=10**6, w_deriv=0.0)
     trainer = Trainer(config, split, split, window=6)
     assert trainer.val_pairs.start.min() == 4
     pool = trainer.quasi_newton_windows()
@@ -834,7 +831,7 @@ def test_windows_can_skip_each_trajectorys_first_samples_and_tile_it(fine, rng) 
         starts = pool.start[pool.traj == i]
         np.testing.assert_array_equal(starts, 4 + 5 * np.arange(starts.size))
     with pytest.raises(ConfigError, match="lbfgs_stride"):
-        TrainConfig(lbfgs_stride=0)
+        paper_train(lbfgs_stride=0)
 
 
 def test_multi_step_loss_rolls_rk4_through_each_windows_own_times(fine, rng) -> None:
@@ -1156,7 +1153,7 @@ def test_without_forcing_fhnn_trains_constant_added_masses() -> None:
     them constant there, and only there."""
     import dataclasses
 
-    from fhnn.models.fhnn import FHNNConfig, fhnn_arguments
+    from fhnn.models.fhnn import fhnn_arguments
     from fhnn.models.registry import MODELS
 
     unforced = small_dataset("steady_vortex", actuation="none")
@@ -1174,8 +1171,8 @@ def test_without_forcing_fhnn_trains_constant_added_masses() -> None:
     neutral = dataclasses.replace(unforced, body_params={**unforced.body_params, "fluid_inertia": True})
     assert not heavy.masses_are_gauge and neutral.masses_are_gauge
     # the constant masses: the same at every (r, σ), learned, and moved by the whole-track fit
-    model = MODELS["fhnn"].make(FHNNConfig(width=8, added_mass="constant"), fhnn_arguments(unforced), 0)
-    net = MODELS["fhnn"].make(FHNNConfig(width=8), fhnn_arguments(unforced), 0)
+    model = MODELS["fhnn"].make(paper_fhnn(width=8, added_mass="constant"), fhnn_arguments(unforced), 0)
+    net = MODELS["fhnn"].make(paper_fhnn(width=8), fhnn_arguments(unforced), 0)
     points = jnp.array([[0.5, 0.01], [2.0, 0.3], [4.0, 1.5]])
     coef = jax.vmap(model.coefficients)(points[:, 0], points[:, 1])
     np.testing.assert_allclose(coef[:, :2], np.full((3, 2), 10.0), rtol=1e-12)  # init_coefficients

@@ -17,9 +17,8 @@ from fhnn.experiments.tables import MODEL_NAMES
 from fhnn.models.base import AbstractModel, Rollout
 from fhnn.models.registry import MODELS
 from fhnn.training.run import Run, RunConfig
-from fhnn.training.trainer import TrainConfig
 
-from .conftest import small_dataset
+from .conftest import paper_train, small_dataset
 
 
 @pytest.fixture(scope="module")
@@ -30,13 +29,14 @@ def data():
 def _small(kind: str):
     config_class = MODELS[kind].config
     fields = {f.name for f in dataclasses.fields(config_class)}
-    return config_class.from_dict({k: v for k, v in {"width": 8, "depth": 1}.items() if k in fields})
+    small = {"width": 8, "depth": 1, "slow_weight": 0.0}  # FHNN's windows unweighted, as in the paper
+    return config_class.from_dict({k: v for k, v in small.items() if k in fields})
 
 
 @pytest.mark.parametrize("kind", list(MODELS))
 def test_every_registered_model_trains_saves_loads_rolls_out_and_scores(kind, data, tmp_path):
     entry = MODELS[kind]
-    config = RunConfig(kind=kind, model=_small(kind), train=TrainConfig(steps=2, val_every=1, batch_size=16))
+    config = RunConfig(kind=kind, model=_small(kind), train=paper_train(steps=2, val_every=1, batch_size=16))
     run = Run.create(tmp_path / "run", data, config)
     assert isinstance(run.skeleton(), AbstractModel)
     state = run.train(data)

@@ -19,8 +19,8 @@ from fhnn.experiments.executors import FAST_COMPILE_FLAGS, Task, _start_worker, 
 from fhnn.experiments.grid import HORIZONS, ReproduceConfig, build_grid
 from fhnn.experiments.reproduce import check_output_folder, reproduce
 from fhnn.experiments.tables import DIVERGENCE_RULE, build_tables, layout, to_csv, to_json, to_markdown
-from fhnn.training.trainer import TrainConfig
 
+from .conftest import PAPER_TRAIN, paper_train
 from .report_checks import check_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,12 +62,14 @@ def test_every_job_trains_with_the_default_plan_under_one_budget() -> None:
     assert 0 < JOB_LBFGS_PAIRS == config.train.lbfgs_pairs < plan.train.lbfgs_pairs
     same = {"steps": plan.train.steps, "max_time": plan.train.max_time, "lbfgs_pairs": plan.train.lbfgs_pairs}
     assert config.train.replace(**same) == plan.train
-    assert config.model.fhnn.width == plan.model["fhnn"]["width"] != type(config.model.fhnn)().width
+    # the default plan's FHNN is the configuration defaults (width 32, slow-window weights)
+    assert plan.model == {} and config.model.fhnn == type(config.model.fhnn)()
+    assert (config.model.fhnn.width, config.model.fhnn.slow_weight) == (32, 1.0)
     fhnn_jobs = [j for j in build_grid(config)[1] if j.model == "fhnn"]
-    assert {j.run.model.width for j in fhnn_jobs} == {plan.model["fhnn"]["width"]}
+    assert {j.run.model.width for j in fhnn_jobs} == {32}
     # the plan's slow-window weights on noise-free observations, none on noisy_flow's
     weights = {(j.data.scenario, j.run.model.slow_weight) for j in fhnn_jobs}
-    assert {w for sc, w in weights if sc != "noisy_flow"} == {plan.model["fhnn"]["slow_weight"]} == {1.0}
+    assert {w for sc, w in weights if sc != "noisy_flow"} == {1.0}
     assert {w for sc, w in weights if sc == "noisy_flow"} == {0.0}
     assert {j.data.noisy for j in fhnn_jobs} == {True, False}
     assert {j.run.train.replace(seed=0) for j in build_grid(config)[1]} == {config.train}
@@ -76,7 +78,7 @@ def test_every_job_trains_with_the_default_plan_under_one_budget() -> None:
 def test_job_ids_change_with_what_determines_the_result_only() -> None:
     _, a = build_grid(ReproduceConfig(seeds=1))
     _, b = build_grid(ReproduceConfig(seeds=1))
-    _, c = build_grid(ReproduceConfig(seeds=1, train=TrainConfig(steps=1501)))
+    _, c = build_grid(ReproduceConfig(seeds=1, train=paper_train(steps=1501)))
     _, d = build_grid(ReproduceConfig(seeds=2, models=("fhnn",)))
     assert [j.id for j in a] == [j.id for j in b]
     assert not {j.id for j in a} & {j.id for j in c}
@@ -345,7 +347,7 @@ def test_a_failing_job_is_reported_by_name_after_the_others_finish(tmp_path: Pat
 
 TWO_JOBS = {
     "seeds": 1,
-    "train": {"steps": 30, "val_every": 30},
+    "train": {**PAPER_TRAIN.to_dict(), "steps": 30, "val_every": 30},  # no warm-up, no polish
     "data": {"n_traj": 6, "duration": 1.0, "dt": 0.1},
     "models": ("fhnn", "node"),
     "ablations": (),

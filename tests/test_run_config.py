@@ -16,14 +16,16 @@ from fhnn.config import read_settings_file
 from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.errors import ConfigError
 from fhnn.training.plans import (
-    AUTO_WARMUP_ACCEPT,
     DEFAULT_PLAN,
+    PAPER_FHNN,
+    PAPER_TRAIN,
     PLANS,
     data_settings,
     default_settings,
     is_noisy,
 )
 from fhnn.training.run import RunConfig
+from fhnn.training.train_config import WARMUP_ACCEPT
 
 from .conftest import small_dataset
 
@@ -99,8 +101,19 @@ def test_settings_file_sections_and_flags_that_agree(tmp_path: Path) -> None:
 
 
 def test_plans_are_typed_training_configurations() -> None:
-    assert PLANS["adam"].train == RunConfig().train
-    assert PLANS["adam"].settings("fhnn") == {f"train.{k}": v for k, v in RunConfig().train.to_dict().items()}
+    # the defaults are the default plan; the paper's plan names every field it changes
+    assert PLANS[DEFAULT_PLAN].train == RunConfig().train and PLANS[DEFAULT_PLAN].model == {}
+    assert PLANS["adam"].settings("fhnn") == {
+        **{f"train.{k}": v for k, v in PAPER_TRAIN.to_dict().items()},
+        **{f"model.{k}": v for k, v in PAPER_FHNN.items()},
+    }
+    paper = RunConfig().with_settings(PLANS["adam"].settings("fhnn"))
+    assert (paper.model.width, paper.model.slow_weight, paper.train.w_step, paper.train.lbfgs_steps) == (
+        64,
+        0.0,
+        1.0,
+        0,
+    )
     solid = RunConfig().with_settings(PLANS["warmup-polish"].settings("fhnn"))
     assert (solid.train.steps, solid.train.warmup_steps, solid.train.lbfgs_steps) == (0, 400, 400)
     assert solid.model.width == 32  # the plan's FHNN width ...
@@ -121,13 +134,11 @@ def test_a_new_run_without_a_plan_starts_from_the_default_plan(
     code, _, err = cli(["train", str(data_file), "-o", str(tmp_path / "run"), *short], capsys)
     assert code == 0, err
     info = json.loads((tmp_path / "run" / "run.json").read_text())
-    assert (
-        info["train_config"]["warmup_accept"] == AUTO_WARMUP_ACCEPT == PLANS[DEFAULT_PLAN].train.warmup_accept
-    )
+    assert info["train_config"]["warmup_accept"] == WARMUP_ACCEPT == PLANS[DEFAULT_PLAN].train.warmup_accept
     assert info["model_config"]["width"] == 32 and info["train_config"]["lbfgs_pairs"] == 64
     # a steady vortex is not a linear flow: the warm-up is given up at its first record
     warm = [r for r in info["history"] if r.get("phase") == "warmup"]
-    assert [r["warmup"] for r in warm] == ["discarded"] and warm[0]["val_total"] > 1e4 * AUTO_WARMUP_ACCEPT
+    assert [r["warmup"] for r in warm] == ["discarded"] and warm[0]["val_total"] > 1e4 * WARMUP_ACCEPT
     assert f"warm-up discarded at iteration {warm[0]['iteration']} of 5 (validation loss" in err
     assert info["step"] == 6 and [r["step"] for r in info["history"] if "phase" not in r] == [2, 4]
     ds = read_dataset(data_file)
@@ -142,8 +153,8 @@ def test_a_new_run_without_a_plan_starts_from_the_default_plan(
     assert data_settings(ds) == {"train.w_deriv": 0.0, "train.w_step": 1.0}
     config = RunConfig().with_settings({**default_settings(ds), **data_settings(ds)})
     assert (config.train.w_deriv, config.train.w_step, config.train.steps) == (0.0, 1.0, 20000)
-    ds.extra["measured"] = ["positions"]  # velocities estimated (an imported table)
-    assert default_settings(ds) == {}
+    ds.extra["measured"] = ["positions"]  # velocities estimated (an imported table): the paper's start
+    assert default_settings(ds) == PLANS["adam"].settings("fhnn")
 
 
 def test_the_default_plan_weighs_slow_windows_on_noise_free_observations_only(data_file: Path) -> None:
@@ -153,15 +164,19 @@ def test_the_default_plan_weighs_slow_windows_on_noise_free_observations_only(da
     plan, clean = PLANS[DEFAULT_PLAN], read_dataset(data_file)
     noisy = dataclasses.replace(clean, obs_noise=1e-3)
     assert not is_noisy(clean) and is_noisy(noisy)
-    on, off = (RunConfig().with_settings(default_settings(d)) for d in (clean, noisy))
+    on, off = (RunConfig().with_settings({**default_settings(d), **data_settings(d)}) for d in (clean, noisy))
     assert (on.model.slow_weight, off.model.slow_weight) == (1.0, 0.0)
     assert on.model.replace(slow_weight=0.0) == off.model and on.train == off.train
     assert on.model.width == off.model.width == 32
-    assert default_settings(noisy) == plan.settings("fhnn", noisy=True) != plan.settings("fhnn")
-    for kind in ("node", "hnn"):  # no model settings of the plan's: the same on both
-        assert default_settings(clean, kind) == default_settings(noisy, kind)
-    # a plan without noisy-observation settings is the same on both
-    assert PLANS["adam-polish"].settings("fhnn", noisy=True) == PLANS["adam-polish"].settings("fhnn")
+    # the plan is the same on both; the data's noise changes the one field, in data_settings
+    assert default_settings(noisy) == plan.settings("fhnn") == default_settings(clean)
+    assert data_settings(noisy) == {"model.slow_weight": 0.0} and data_settings(clean) == {}
+    for kind in ("node", "hnn"):  # no model settings of the rule's: the same on both
+        assert data_settings(noisy, kind) == data_settings(clean, kind) == {}
+    # every other plan leaves the windows unweighted, as the paper does
+    assert {PLANS[name].settings("fhnn")["model.slow_weight"] for name in PLANS if name != DEFAULT_PLAN} == {
+        0.0
+    }
 
 
 def test_resume_refuses_other_settings_and_runs_are_found_from_anywhere(

@@ -14,15 +14,13 @@ from jax.flatten_util import ravel_pytree
 
 from fhnn.errors import ConfigError
 from fhnn.models.baselines import MLPConfig
-from fhnn.models.fhnn import FHNNConfig
 from fhnn.physics.actuation import forcing
 from fhnn.physics.integrators import rk4_solve
 from fhnn.training import tracks as track_module
 from fhnn.training.run import Run, RunConfig
 from fhnn.training.tracks import ForecastScore, TrackFit, origin_pieces, track_pieces
-from fhnn.training.trainer import TrainConfig
 
-from .conftest import arrays, small_dataset
+from .conftest import arrays, paper_fhnn, paper_train, small_dataset
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +28,11 @@ def setting(tmp_path_factory):
     """A small FHNN, a truth that differs from it in the fitted parameters only, and the
     training tracks observed exactly under that truth (start states: the data's)."""
     ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
-    run = Run.create(tmp_path_factory.mktemp("tracks") / "run", ds, RunConfig(model=FHNNConfig(width=8)))
+    run = Run.create(
+        tmp_path_factory.mktemp("tracks") / "run",
+        ds,
+        RunConfig(model=paper_fhnn(width=8), train=paper_train()),
+    )
     model = run.skeleton()
     free = model.track_parameters()
     params, static = eqx.partition(model, free)
@@ -130,8 +132,8 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
     # a budget one sample short of the training tracks: the fit holds all but one of them
     budget = ds.train.n_traj * ds.train.n_times - 1
-    config = TrainConfig(steps=4, val_every=2, batch_size=16, track_steps=2, track_samples=budget)
-    run = Run.create(tmp_path / "fhnn", ds, RunConfig(model=FHNNConfig(width=8), train=config))
+    config = paper_train(steps=4, val_every=2, batch_size=16, track_steps=2, track_samples=budget)
+    run = Run.create(tmp_path / "fhnn", ds, RunConfig(model=paper_fhnn(width=8), train=config))
     state = run.train(ds)
     tracks = [r for r in state.history if r.get("phase") == "tracks"]
     assert tracks[0]["tracks"] == ds.train.n_traj - 1 and tracks[0]["val_tracks"] == ds.val.n_traj
@@ -161,7 +163,7 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     assert state.step == 6 and mlp.finished
     assert not any(r.get("phase") == "tracks" for r in state.history)
     with pytest.raises(ConfigError, match="track_steps"):
-        TrainConfig(track_steps=-1)
+        paper_train(track_steps=-1)
 
 
 def test_track_pieces_cover_every_sample_once_and_keep_to_the_budget(monkeypatch):
@@ -195,7 +197,7 @@ def test_track_pieces_cover_every_sample_once_and_keep_to_the_budget(monkeypatch
     seven, parent = track_pieces(sp, 7 * 7, seed=3)
     assert seven.n_traj == 7 and set(parent) == set(range(5))
     with pytest.raises(ConfigError, match="track_samples"):
-        TrainConfig(track_samples=0)
+        paper_train(track_samples=0)
 
 
 def test_origin_pieces_start_at_each_origin_and_mark_their_history(monkeypatch):

@@ -11,11 +11,10 @@ import pytest
 
 from fhnn.errors import ConfigError
 from fhnn.models.baselines import MLPConfig
-from fhnn.models.fhnn import FHNNConfig
 from fhnn.training.run import Run, RunConfig
-from fhnn.training.trainer import TrainConfig, Trainer
+from fhnn.training.trainer import Trainer
 
-from .conftest import arrays, small_dataset
+from .conftest import arrays, paper_fhnn, paper_train, small_dataset
 
 
 def test_the_warmup_is_kept_or_discarded_by_its_validation_loss(tmp_path):
@@ -25,10 +24,10 @@ def test_the_warmup_is_kept_or_discarded_by_its_validation_loss(tmp_path):
     ds = small_dataset("solid_body_vortex", n_traj=8, duration=2.0)
 
     def run(folder, accept):
-        config = TrainConfig(
+        config = paper_train(
             steps=6, val_every=4, batch_size=16, warmup_steps=20, warmup_accept=accept, lbfgs_pairs=1500
         )
-        return Run.create(tmp_path / folder, ds, RunConfig(model=FHNNConfig(width=16), train=config))
+        return Run.create(tmp_path / folder, ds, RunConfig(model=paper_fhnn(width=16), train=config))
 
     kept = run("kept", 1.0)
     state = kept.train(ds, save=False)
@@ -49,7 +48,7 @@ def test_the_warmup_is_kept_or_discarded_by_its_validation_loss(tmp_path):
     hopeless = run("hopeless", warm["val_total"] * 1e-4 / 1.001).train(ds, save=False, until=0)
     assert [(r["iteration"], r.get("warmup")) for r in hopeless.history] == [(4, "discarded")]
     with pytest.raises(ConfigError, match="warmup_accept"):
-        TrainConfig(warmup_accept=-1.0)
+        paper_train(warmup_accept=-1.0)
 
 
 def test_the_time_budget_ends_each_phase_and_says_so(tmp_path):
@@ -57,7 +56,7 @@ def test_the_time_budget_ends_each_phase_and_says_so(tmp_path):
     polish get half the budget), the polish at its next iteration; the run is finished (a resume
     trains nothing) and ``stopped`` names both cuts. Without a budget nothing is cut."""
     ds = small_dataset("steady_vortex", n_traj=4, duration=1.0)
-    config = TrainConfig(steps=50, val_every=10, batch_size=16, lbfgs_steps=5, lbfgs_pairs=64, max_time=1e-9)
+    config = paper_train(steps=50, val_every=10, batch_size=16, lbfgs_steps=5, lbfgs_pairs=64, max_time=1e-9)
     run = Run.create(
         tmp_path / "r", ds, RunConfig(kind="node", model=MLPConfig(width=8, depth=1), train=config)
     )
@@ -87,10 +86,12 @@ def test_a_discarded_warmup_leaves_adam_and_the_polish_what_is_left(tmp_path):
     import time
 
     ds = small_dataset("solid_body_vortex", n_traj=4, duration=1.0)
-    model = Run.create(tmp_path / "run", ds, RunConfig(model=FHNNConfig(width=8))).skeleton()
+    model = Run.create(
+        tmp_path / "run", ds, RunConfig(model=paper_fhnn(width=8), train=paper_train())
+    ).skeleton()
 
     def trainer(accept):
-        config = TrainConfig(
+        config = paper_train(
             warmup_steps=2, warmup_accept=accept, lbfgs_steps=5, lbfgs_pairs=64, max_time=1000.0
         )
         t = Trainer(config, ds.train, ds.val)
@@ -119,7 +120,7 @@ def test_an_earlier_phase_cut_does_not_end_adam(tmp_path):
     stored ``stopped`` text must not end Adam at its first validation (only a cut of this phase
     does), so Adam runs to its end and the polish follows."""
     ds = small_dataset("steady_vortex", n_traj=4, duration=1.0)
-    config = TrainConfig(steps=4, val_every=2, batch_size=16)
+    config = paper_train(steps=4, val_every=2, batch_size=16)
     run = Run.create(
         tmp_path / "r", ds, RunConfig(kind="node", model=MLPConfig(width=8, depth=1), train=config)
     )
@@ -138,10 +139,12 @@ def test_the_validation_total_weighs_terms_as_training_does(tmp_path):
     weight 0 (the derivative loss on data whose derivatives were estimated) is reported but left
     out of ``total``, and the others enter with their weights."""
     ds = small_dataset("solid_body_vortex", n_traj=4, duration=1.0)
-    model = Run.create(tmp_path / "run", ds, RunConfig(model=FHNNConfig(width=8))).skeleton()
-    both = Trainer(TrainConfig(), ds.train, ds.val).validate(model)
+    model = Run.create(
+        tmp_path / "run", ds, RunConfig(model=paper_fhnn(width=8), train=paper_train())
+    ).skeleton()
+    both = Trainer(paper_train(), ds.train, ds.val).validate(model)
     assert both["total"] == pytest.approx(both["deriv"] + both["step"], rel=1e-12)
-    weighted = Trainer(TrainConfig(w_deriv=0.0, w_step=2.5), ds.train, ds.val).validate(model)
+    weighted = Trainer(paper_train(w_deriv=0.0, w_step=2.5), ds.train, ds.val).validate(model)
     assert weighted["deriv"] == both["deriv"] > 0
     assert weighted["total"] == pytest.approx(2.5 * both["step"], rel=1e-12)
 
@@ -153,7 +156,7 @@ def test_a_programs_first_call_its_compilation_is_left_out_of_the_budget():
     import time
 
     ds = small_dataset("steady_vortex", n_traj=4, duration=1.0)
-    t = Trainer(TrainConfig(max_time=100.0, lbfgs_steps=5), ds.train, ds.val)
+    t = Trainer(paper_train(max_time=100.0, lbfgs_steps=5), ds.train, ds.val)
     start, adam = t.started, t.deadline("adam")
     assert t._uncounted_first("adam", lambda x: x + 1, 1) == 2
     t._uncounted_first("lbfgs", time.sleep, 0.2)

@@ -16,11 +16,10 @@ import optax
 import pytest
 
 import fhnn.executables as executables
-import fhnn.training.trainer as trainer_module
+import fhnn.training.losses as losses_module
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.errors import ConfigError
 from fhnn.models.baselines import MLPConfig
-from fhnn.models.fhnn import FHNNConfig
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import get_scenario
 from fhnn.runtime import CACHE_ENV, default_cache_dir
@@ -28,12 +27,11 @@ from fhnn.training.run import Run
 from fhnn.training.trainer import (
     PENALTY_FREE_MIN_STEPS,
     AdamSettings,
-    TrainConfig,
     Trainer,
     adam_step,
 )
 
-from .conftest import SMALL, arrays, small_dataset
+from .conftest import SMALL, arrays, paper_fhnn, paper_train, small_dataset
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +40,7 @@ def data():
 
 
 def fresh(data, seed=0, **model):
-    return MODELS["fhnn"].make(FHNNConfig(width=8, depth=2, **model), MODELS["fhnn"].arguments(data), seed)
+    return MODELS["fhnn"].make(paper_fhnn(width=8, depth=2, **model), MODELS["fhnn"].arguments(data), seed)
 
 
 @pytest.fixture
@@ -51,13 +49,13 @@ def traces(monkeypatch):
     executables are off: one another test or process stored would be loaded untraced."""
     monkeypatch.setattr(executables, "store_folder", lambda: None)
     calls = []
-    original = trainer_module.loss_terms
+    original = losses_module.loss_terms
 
     def counting(model, batch, scales):
         calls.append(1)
         return original(model, batch, scales)
 
-    monkeypatch.setattr(trainer_module, "loss_terms", counting)
+    monkeypatch.setattr(losses_module, "loss_terms", counting)
     return calls
 
 
@@ -69,7 +67,7 @@ def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, traces):
     trace of the loss at all). A zero weight, which drops a loss term, is another program."""
 
     def train(seed, val_every, **numbers):
-        config = TrainConfig(
+        config = paper_train(
             val_every=val_every, batch_size=16, lbfgs_steps=2, lbfgs_pairs=64, seed=seed, **numbers
         )
         tr = Trainer(config, data.train, data.val)
@@ -81,7 +79,7 @@ def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, traces):
     assert first > 0
     other = dict(steps=6, lr=1e-3, lr_decay=0.5, lr_boundaries=(0.2, 0.5, 0.7, 0.95))
     assert train(7, 4, **other, lambda_flow=3e-6, flow_anneal=0.3) == first  # nothing traced again
-    structure = lambda **c: jax.tree.structure(AdamSettings.of(TrainConfig(**c)))  # noqa: E731
+    structure = lambda **c: jax.tree.structure(AdamSettings.of(paper_train(**c)))  # noqa: E731
     assert structure(seed=1, val_every=3, **other) == structure()
     assert structure(w_step=0.0) != structure() and structure(lr_c_l=3.0) != structure()
 
@@ -89,10 +87,10 @@ def test_a_second_trainer_of_the_same_shapes_traces_nothing(data, traces):
 @pytest.mark.parametrize(
     "config",
     [
-        TrainConfig(),
-        TrainConfig(steps=2, lr_c_l=3.0),  # boundaries that fall on one step count once
-        TrainConfig(steps=7, lr_boundaries=(), flow_anneal=0.0, w_step=0.0),
-        TrainConfig(steps=1000, lr_boundaries=(0.5,), lr=1e-2, lr_decay=0.1, flow_anneal=0.3),
+        paper_train(),
+        paper_train(steps=2, lr_c_l=3.0),  # boundaries that fall on one step count once
+        paper_train(steps=7, lr_boundaries=(), flow_anneal=0.0, w_step=0.0),
+        paper_train(steps=1000, lr_boundaries=(0.5,), lr=1e-2, lr_decay=0.1, flow_anneal=0.3),
     ],
 )
 def test_adam_settings_compute_the_configurations_schedule_penalty_weight_and_loss_exactly(config):
@@ -110,7 +108,7 @@ def test_adam_settings_compute_the_configurations_schedule_penalty_weight_and_lo
         weight = config.lambda_flow * min(max(1.0 - max(i, 0) / end, 0.0), 1.0) if end > 0 else 0.0
         assert float(settings.flow_weight(count)) == weight
     terms = {"deriv": jnp.asarray(0.3), "step": jnp.asarray(0.7), "flow": jnp.asarray(5.0)}
-    assert float(settings.data_loss(terms)) == float(trainer_module.data_loss(terms, config))
+    assert float(settings.data_loss(terms)) == float(losses_module.data_loss(terms, config))
 
 
 def test_the_quasi_newton_step_compiles_once_per_phase(data, traces):
@@ -119,7 +117,7 @@ def test_the_quasi_newton_step_compiles_once_per_phase(data, traces):
     often as a 1-iteration one (before the fix the second iteration compiled the step again)."""
 
     def polish_traces(width, iterations):
-        config = TrainConfig(steps=0, val_every=1, lbfgs_steps=iterations, lbfgs_pairs=64)
+        config = paper_train(steps=0, val_every=1, lbfgs_steps=iterations, lbfgs_pairs=64)
         tr = Trainer(config, data.train, data.val)
         kind = MODELS["node"]  # the cheapest model to compile: the issue is the optimiser's state
         state = tr.init(kind.make(MLPConfig(width=width, depth=1), kind.arguments(data), 0))
@@ -144,10 +142,10 @@ def test_other_data_bodies_and_ablations_share_the_programs_and_never_move_the_c
         SimulationConfig.for_scenario(scenario, **{**SMALL, "n_traj": 6, "duration": 2.0, "dt": data.dt}),
     )
     assert other.constants()["M"] != data.constants()["M"]
-    assert len(Trainer(TrainConfig(), other.train, other.val).train_pairs) == len(
-        Trainer(TrainConfig(), data.train, data.val).train_pairs
+    assert len(Trainer(paper_train(), other.train, other.val).train_pairs) == len(
+        Trainer(paper_train(), data.train, data.val).train_pairs
     )
-    config = TrainConfig(steps=3, val_every=3, batch_size=16)
+    config = paper_train(steps=3, val_every=3, batch_size=16)
 
     def train(dataset, **model):
         tr = Trainer(config, dataset.train, dataset.val)
@@ -211,13 +209,13 @@ def test_a_format_1_run_loads_with_its_constants_and_predicts_as_it_did(tmp_path
 
 
 def test_the_penalty_free_step_is_the_same_step_once_the_weight_is_zero(data):
-    config = TrainConfig(steps=4 * PENALTY_FREE_MIN_STEPS, batch_size=32)
+    config = paper_train(steps=4 * PENALTY_FREE_MIN_STEPS, batch_size=32)
     end = int(config.flow_anneal * config.steps)
     assert config.regularizes(end - 1) and not config.regularizes(end)
     # a short run keeps one program: too few steps to gain a second compilation back
-    short = TrainConfig(steps=PENALTY_FREE_MIN_STEPS)
+    short = paper_train(steps=PENALTY_FREE_MIN_STEPS)
     assert all(short.regularizes(i) for i in (0, short.steps // 2, short.steps - 1))
-    assert not TrainConfig(lambda_flow=0.0).regularizes(0)
+    assert not paper_train(lambda_flow=0.0).regularizes(0)
     tr = Trainer(config, data.train, data.val)
     state = tr.init(fresh(data, far_field="none"))  # the whole ψ is penalised: non-zero from the start
     args = (state.model, state.opt_state, jnp.asarray(end + 3), tr._train, tr.scales, tr._key, None)
@@ -282,7 +280,7 @@ def test_lr_c_l_scales_only_the_constant_coefficients_steps(data):
     model = fresh(data, added_mass="constant")
     updates = {}
     for k in (1.0, 7.0):
-        config = TrainConfig(steps=10, batch_size=16, lr_c_l=k)
+        config = paper_train(steps=10, batch_size=16, lr_c_l=k)
         tr = Trainer(config, data.train, data.val)
         state = tr.init(model)
         args = (state.model, state.opt_state, jnp.asarray(0), tr._train, tr.scales, tr._key, None)
@@ -302,4 +300,4 @@ def test_lr_c_l_scales_only_the_constant_coefficients_steps(data):
     for a, b in zip(arrays(rest(updates[1.0])), arrays(rest(updates[7.0])), strict=True):
         np.testing.assert_array_equal(a, b)
     with pytest.raises(ConfigError, match="lr_c_l must be > 0, got 0.0"):
-        TrainConfig(lr_c_l=0.0)
+        paper_train(lr_c_l=0.0)

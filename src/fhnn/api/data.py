@@ -11,18 +11,12 @@ from typing import Any
 from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
 
 from fhnn.api.report import Reporter, fault_point, reporter
+from fhnn.data.cleaning import OUTLIER_SIGMAS, parse_max_gap, parse_outliers
+from fhnn.data.conversion import ImportSettings, parse_split, table_to_dataset
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
-from fhnn.data.table import (
-    OUTLIER_SIGMAS,
-    ImportSettings,
-    parse_max_gap,
-    parse_outliers,
-    parse_split,
-    read_table,
-    table_to_dataset,
-)
+from fhnn.data.table import read_table
 from fhnn.files import check_output_path
 from fhnn.physics.scenarios import Scenario, scenario_class
 

@@ -35,6 +35,7 @@ class Inspection:
         written: the files written into the run folder.
         members: the number of runs (1 for a single run).
         forced: whether the data carry known forcing (ensembles).
+        notes: what the inspection found worth saying (identifiability, a guard's stop).
     """
 
     kind: str

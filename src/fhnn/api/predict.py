@@ -11,20 +11,12 @@ from typing import Any
 import numpy as np
 
 from fhnn.api.fit import Fit
-from fhnn.data.table import (
-    OUTLIER_SIGMAS,
-    SECONDS_ONLY,
-    Table,
-    check_table_name,
-    drop_table_outliers,
-    read_forcing,
-    read_table,
-    seconds_to_date_times,
-    shift_times,
-    write_table,
-)
+from fhnn.data.cleaning import OUTLIER_SIGMAS, drop_table_outliers
+from fhnn.data.clock import SECONDS_ONLY, seconds_to_date_times
+from fhnn.data.table import Table, check_table_name, read_forcing, read_table, shift_times, write_table
 from fhnn.errors import ConfigError
-from fhnn.evaluation.predict import FIT_WINDOW, SAMPLES, Forecast, predict_tracks
+from fhnn.evaluation import predict as prediction
+from fhnn.evaluation.predict import FIT_WINDOW, SAMPLES, Forecast
 from fhnn.files import check_output_path
 from fhnn.models.base import AbstractVectorField
 from fhnn.training.ensemble import INTERVAL
@@ -148,7 +140,7 @@ def predict(
             else 0.05
         )
     forecasts = [
-        predict_tracks(
+        prediction.predict_tracks(
             model,
             duration=duration,
             dt=dt,

@@ -13,8 +13,8 @@ from fhnn.api.data import info as data_info
 from fhnn.api.data import simulate as simulate_data
 from fhnn.cli import render
 from fhnn.cli.options import app
+from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
 from fhnn.data.derivatives import AUTO_SPLINE_ROWS
-from fhnn.data.table import GAP_STEPS, OUTLIER_SIGMAS
 from fhnn.physics.scenarios import SCENARIOS, UNITS
 from fhnn.training.settings import parse_params
 

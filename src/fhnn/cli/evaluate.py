@@ -14,7 +14,7 @@ from fhnn.api.evaluate import evaluate as evaluate_fit
 from fhnn.api.predict import predict as predict_fit
 from fhnn.cli import render
 from fhnn.cli.options import DataArgument, RunDirArgument, app
-from fhnn.data.table import OUTLIER_SIGMAS, parse_outliers
+from fhnn.data.cleaning import OUTLIER_SIGMAS, parse_outliers
 from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import METRICS
 from fhnn.evaluation.predict import SAMPLES

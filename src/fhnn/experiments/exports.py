@@ -32,8 +32,9 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fhnn.data.clock import dataset_clock
 from fhnn.data.dataset import Dataset
-from fhnn.data.table import dataset_clock, write_table
+from fhnn.data.table import write_table
 from fhnn.evaluation.recovery import (
     RATIO_NAMES,
     coefficients_at,

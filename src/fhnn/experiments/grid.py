@@ -36,7 +36,7 @@ from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import PAPER_SCENARIOS, SCENARIOS
 from fhnn.runtime import source_digest
-from fhnn.training.plans import DEFAULT_PLAN, PLANS
+from fhnn.training.plans import DEFAULT_PLAN, PLANS, noisy_model_settings
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import TrainConfig
 
@@ -138,8 +138,9 @@ def reproduction_train() -> TrainConfig:
 def reproduction_models() -> Config:
     """Each model kind's configuration in the reproduction: its defaults with the default plan's
     model settings (FHNN width 32 and slow-window weights, ``slow_weight`` 1), so the ablations
-    share FHNN's architecture. On data sets with observation noise (``noisy_flow``) the plan's
-    ``noisy_model`` settings replace them (FHNN ``slow_weight`` 0; :func:`build_grid`)."""
+    share FHNN's architecture. On data sets with observation noise (``noisy_flow``) the settings
+    such data call for replace them (FHNN ``slow_weight`` 0;
+    :func:`~fhnn.training.plans.noisy_model_settings`, :func:`build_grid`)."""
     plan = PLANS[DEFAULT_PLAN]
     return ModelOptions.from_dict(
         {kind: MODELS[kind].config().replace(**plan.model.get(kind, {})).to_dict() for kind in MODELS}
@@ -160,11 +161,11 @@ class ReproduceConfig(Config):
         identifiability: add ``steady_vortex`` without actuation to T6.
         data: the simulated data sets (:class:`DataSettings`).
         train: the training of every gradient-trained model — the same plan and wall-clock
-            budget for all (:class:`~fhnn.training.trainer.TrainConfig`, default
+            budget for all (:class:`~fhnn.training.train_config.TrainConfig`, default
             :func:`reproduction_train`; its seed is set per job).
         model: each model kind's configuration (``ModelOptions``, default
-            :func:`reproduction_models`); on data sets with observation noise the default plan's
-            ``noisy_model`` settings replace the fields they name (FHNN ``slow_weight``).
+            :func:`reproduction_models`); on data sets with observation noise the settings such
+            data call for replace the fields they name (FHNN ``slow_weight``).
         fast_compile: compile the jobs' programs for compilation speed rather than run speed
             (LLVM optimisation level 0 in the worker processes: on the 2-core CPU the quick
             reproduction takes ~23 % less wall time and an Adam step runs 1.6× slower),
@@ -228,7 +229,13 @@ class ReproduceConfig(Config):
                 "seeds": 1,
                 # the plan's loss (derivative loss alone, no penalty): smaller programs, 81 s
                 # against 91 s cold on the 2-core CPU (2026-11-25, two runs each)
-                "train": {"steps": 80, "val_every": 40, **_loss_terms(PLANS[DEFAULT_PLAN].train)},
+                "train": {
+                    "steps": 80,
+                    "val_every": 40,
+                    "warmup_steps": 0,
+                    "lbfgs_steps": 0,
+                    **_loss_terms(PLANS[DEFAULT_PLAN].train),
+                },
                 "data": {"n_traj": 20, "duration": 3.0, "dt": 0.1},
                 "main_scenarios": ("solid_body_vortex",),
                 "models": tuple(name for name, kind in MODELS.items() if kind.in_paper),
@@ -373,7 +380,7 @@ def build_grid(config: ReproduceConfig) -> tuple[list[DataJob], list[ModelJob]]:
         datasets.setdefault(d.id, d)
         model_config = getattr(config.model, model)
         if d.noisy:  # the default plan's rule for noisy observations (FHNN: no slow-window weights)
-            model_config = model_config.replace(**PLANS[DEFAULT_PLAN].noisy_model.get(model, {}))
+            model_config = model_config.replace(**noisy_model_settings(model))
         if ablation != "none":
             model_config = model_config.replace(ablation=ablation)
         for seed in range(config.seeds):

@@ -45,17 +45,20 @@ CAPTIONS["T6"] = (
     "Without actuation (solid_body_vortex, *_noact) only c / (M + m_a) is identifiable"
 )
 RECOVERY_METRICS = ("m_ax", "m_ay", "c_q", "c_l", "flow")
-#: Column label of every metric: the rollout metrics' from their registry, then the recovery's.
-METRIC_NAMES = {
-    **{m.name: m.label for m in METRICS.values()},
-    "m_ax": "m_ax",
-    "m_ay": "m_ay",
-    "c_q": "c_q(σ)",
-    "c_l": "c_l",
-    "flow": "flow (rel. L2)",
-}
-#: Error metrics a diverged rollout makes infinite (the fractions count it as a failure).
-ERROR_METRICS = tuple(m.name for m in METRICS.values() if m.error)
+#: Column labels of the recovery metrics (the rollout metrics' come from their registry).
+RECOVERY_LABELS = {"m_ax": "m_ax", "m_ay": "m_ay", "c_q": "c_q(σ)", "c_l": "c_l", "flow": "flow (rel. L2)"}
+
+
+def metric_label(name: str) -> str:
+    """The column label of metric ``name``: a registered rollout metric's, or a recovery metric's."""
+    return METRICS[name].label if name in METRICS else RECOVERY_LABELS[name]
+
+
+def is_error_metric(name: str) -> bool:
+    """Whether a diverged rollout makes metric ``name`` infinite (the fractions count it as a failure)."""
+    return name in METRICS and METRICS[name].error
+
+
 #: How a table treats diverged rollouts; printed under every table.
 DIVERGENCE_RULE = (
     "No rollout or seed is left out: a diverged rollout counts as an infinite error, so a seed with "
@@ -118,7 +121,7 @@ def seed_stats(values: list[float]) -> tuple[float, float]:
 
 def seed_value(metrics: dict, metric: str) -> float:
     """A seed's ``metric``: infinite for an error metric when one of its rollouts diverged."""
-    if metric in ERROR_METRICS and int(metrics["diverged"]) > 0:
+    if is_error_metric(metric) and int(metrics["diverged"]) > 0:
         return math.inf
     return float(metrics[metric])
 
@@ -232,11 +235,11 @@ def layout(cells: list[Cell]) -> list[tuple[str, str, list[str], list[list[str]]
             header = [first] if key == "T6" else [first, "H [s]"]
             for m in metrics:
                 if key == "T6":
-                    header.append(METRIC_NAMES[m])
+                    header.append(metric_label(m))
                 elif m == "outside_training":
-                    header.append(METRIC_NAMES[m])
+                    header.append(metric_label(m))
                 else:
-                    header += [METRIC_NAMES[m], "ours, t=0..H", "paper"]
+                    header += [metric_label(m), "ours, t=0..H", "paper"]
             rows = []
             keys = list(dict.fromkeys((c.data if key in ("T4", "T6") else c.model, c.horizon) for c in sub))
             for name, h in keys:

@@ -95,6 +95,17 @@ class Registry(Mapping[str, ModelKind]):
     def __contains__(self, name: object) -> bool:
         return name in self._kinds
 
+    def register(self, kind: ModelKind) -> ModelKind:
+        """Add model kind ``kind`` (after those already there); returns it.
+
+        Raises:
+            ConfigError: a name already registered.
+        """
+        if kind.name in self._kinds:
+            raise ConfigError(f"a model kind named {kind.name!r} is already registered")
+        self._kinds[kind.name] = kind
+        return kind
+
     def labels(self) -> dict[str, str]:
         """Every kind's and variant's label, by name."""
         out = {k.name: k.label for k in self._kinds.values()}

@@ -1,4 +1,4 @@
-"""The six named scenarios of SPEC §2: flow, body and initial-state distribution, as typed objects.
+"""The named scenarios: flow, body and initial-state distribution, as typed objects.
 
 Each scenario is a frozen configuration (:class:`Scenario`) whose fields are every parameter of its
 flow, its body and its initial states; unknown names are rejected. It builds the ground-truth
@@ -8,6 +8,10 @@ states from a NumPy generator, and carries the data-set defaults of SPEC §3 (``
 >>> sc = get_scenario("steady_vortex", gamma=4.0)
 >>> sc.flow()            # LambOseenVortex(gamma=4.0, core_radius=1.0, ...)
 >>> sorted(SCENARIOS)    # the registry
+
+A new scenario is a :class:`Scenario` subclass decorated with :func:`register_scenario` (the
+units of any new parameter in :data:`UNITS`): ``fhnn scenarios``, ``fhnn simulate`` and the
+reproduction's settings then know it.
 """
 
 from __future__ import annotations
@@ -148,6 +152,24 @@ class Scenario(Config):
 
 
 # --------------------------------------------------------------------------------------------
+#: Every registered scenario class, by name, in the order registered.
+SCENARIOS: dict[str, type[Scenario]] = {}
+
+
+def register_scenario(cls: type[Scenario]) -> type[Scenario]:
+    """Register scenario class ``cls`` under ``cls.name`` (a class decorator); returns it.
+
+    Raises:
+        ConfigError: a class without a name, or a name already registered by another class.
+    """
+    if not cls.name:
+        raise ConfigError(f"scenario class {cls.__name__} has no name")
+    if cls.name in SCENARIOS and SCENARIOS[cls.name] is not cls:
+        raise ConfigError(f"a scenario named {cls.name!r} is already registered")
+    SCENARIOS[cls.name] = cls
+    return cls
+
+
 # The body and initial states shared by the paper's five scenarios (SPEC §1, §2.1)
 
 
@@ -241,6 +263,7 @@ class _VortexScenario(_PaperBodyScenario):
         return LambOseenVortex(gamma=self.gamma, core_radius=self.core_radius)
 
 
+@register_scenario
 @frozen_config
 class SteadyVortex(_VortexScenario):
     """Lamb–Oseen vortex at the origin (SPEC §2.1)."""
@@ -249,6 +272,7 @@ class SteadyVortex(_VortexScenario):
     summary: ClassVar[str] = "Lamb–Oseen vortex at the origin"
 
 
+@register_scenario
 @frozen_config
 class TimeVaryingVortex(_VortexScenario):
     """Lamb–Oseen vortex with ``Γ(t) = Γ0 (1 + m sin(2π t / period))`` (SPEC §2.2)."""
@@ -276,6 +300,7 @@ class TimeVaryingVortex(_VortexScenario):
 Mode = tuple[float, float, float, float]
 
 
+@register_scenario
 @frozen_config
 class NoisyFlow(_VortexScenario):
     """Vortex plus a frozen random divergence-free perturbation (SPEC §2.3).
@@ -352,6 +377,7 @@ class NoisyFlow(_VortexScenario):
         return super().from_dict(values)  # type: ignore[return-value]
 
 
+@register_scenario
 @frozen_config
 class Obstacle(_BoxStartScenario):
     """Uniform stream past a cylinder with circulation; near-wall added mass (SPEC §2.4)."""
@@ -394,6 +420,7 @@ class Obstacle(_BoxStartScenario):
         return too_close | ~np.all(np.isfinite(states), axis=(1, 2))
 
 
+@register_scenario
 @frozen_config
 class Wave(_BoxStartScenario):
     """Neutrally buoyant body under a deep-water wave, with Morison inertia (SPEC §2.5)."""
@@ -425,6 +452,7 @@ class Wave(_BoxStartScenario):
         return np.asarray(jax.vmap(self.flow().velocity, in_axes=(0, None))(jnp.asarray(pos), 0.0))
 
 
+@register_scenario
 @frozen_config
 class SolidBodyVortex(Scenario):
     """Solid-body rotation: the configuration of the paper's published code (SPEC §2.6)."""
@@ -478,10 +506,6 @@ class SolidBodyVortex(Scenario):
         vel = rng.uniform(-self.vel_range, self.vel_range, (n, 2))
         return np.column_stack([pos, vel])
 
-
-SCENARIOS: dict[str, type[Scenario]] = {
-    cls.name: cls for cls in (SteadyVortex, TimeVaryingVortex, NoisyFlow, Obstacle, Wave, SolidBodyVortex)
-}
 
 #: The five scenarios of the paper's scenario table (SPEC §2.1–2.5).
 PAPER_SCENARIOS = ("steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "wave")

@@ -7,7 +7,7 @@ Folder layout (``fhnn train DATA -o OUT --seeds N``)::
 
 The members are trained in one process by :func:`train_members`: their warm-ups one after
 another, their Adam phases together as one ``vmap``-ed program per step
-(:func:`~fhnn.training.trainer.run_together`), their L-BFGS polishes one after another. They have
+(:func:`~fhnn.training.together.run_together`), their L-BFGS polishes one after another. They have
 the same shapes and configuration, so the first member's compiled programs serve every other
 member, and each stays an ordinary run that can be resumed, inspected or evaluated on its own.
 Three members' Adam steps as one program have 3.78× the throughput of sequential ones for the
@@ -21,7 +21,7 @@ quarters of one on ``steady_vortex``.
 
 ``fhnn train --seeds N`` trains each member on its own Bayesian bootstrap of the training
 trajectories (``train.bootstrap``: every trajectory weighted by a random positive weight of mean
-1, :func:`~fhnn.training.trainer.bootstrap_weights`; ``--set train.bootstrap=false`` trains all
+1, :func:`~fhnn.training.sampling.bootstrap_weights`; ``--set train.bootstrap=false`` trains all
 on the same data), so the members' spread holds the data's sampling noise besides the
 initialisation's and the batch order's. ``fhnn inspect`` reports it as a 90 % interval at each
 point (:func:`interval`): the members' mean ± ``t(0.95; N−1) · s · √(1 + 1/N)``, ``s`` their
@@ -49,7 +49,8 @@ from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import write_atomic
 from fhnn.models.registry import MODELS
 from fhnn.training.run import Run
-from fhnn.training.trainer import TrainState, can_run_together, run_together
+from fhnn.training.together import can_run_together, run_together
+from fhnn.training.trainer import TrainState
 
 ENSEMBLE_FORMAT = "fhnn-ensemble"
 ENSEMBLE_FORMAT_VERSION = 1
@@ -142,7 +143,7 @@ def train_members(
     """Train (or resume) the members ``runs`` of an ensemble on ``dataset`` to the end of every
     phase, checkpointing each as :meth:`Run.train` does (``callbacks[j]`` at member ``j``'s
     records, ``on_steps[j]`` at its steps). With ``together`` (and members that allow it:
-    :func:`~fhnn.training.trainer.can_run_together`) their Adam phases run as one program;
+    :func:`~fhnn.training.together.can_run_together`) their Adam phases run as one program;
     otherwise, or for a fitted kind, each member trains on its own, one after another. Under a
     time budget (``train.max_time``) each member is charged only its own phases and its share of
     the joint one."""

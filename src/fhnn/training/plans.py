@@ -1,4 +1,4 @@
-"""Named training plans: typed presets of :class:`~fhnn.training.trainer.TrainConfig`.
+"""Named training plans: typed presets of :class:`~fhnn.training.train_config.TrainConfig`.
 
 A plan fixes the phases of a run (quasi-Newton warm-up, Adam, quasi-Newton polish) and their
 lengths; ``fhnn train --plan NAME`` starts from it and ``--set train.NAME=VALUE`` changes any
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fhnn.data.dataset import Dataset
-from fhnn.data.table import start_errors
+from fhnn.data.observation import start_errors
 from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
 from fhnn.training.trainer import TrainConfig
@@ -29,38 +29,35 @@ class TrainingPlan:
         train: the training configuration it stands for.
         model: model settings per model kind that the plan was measured with (e.g. the FHNN's
             width), applied to runs of that kind only.
-        noisy_model: model settings per model kind that replace ``model``'s where the data's
-            observations carry noise (``Dataset.obs_noise > 0``: a simulation with observation
-            noise, or an imported table, whose noise is estimated).
     """
 
     name: str
     summary: str
     train: TrainConfig
     model: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
-    noisy_model: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
-    def settings(self, kind: str, *, noisy: bool = False) -> dict[str, Any]:
+    def settings(self, kind: str) -> dict[str, Any]:
         """The plan as dotted settings for a run of ``kind``: every ``train.*`` field and the
-        plan's ``model.*`` settings for that kind, with ``noisy_model``'s over them for data
-        whose observations carry noise (``noisy``) — what ``fhnn train --plan`` starts from; a
+        plan's ``model.*`` settings for that kind — what ``fhnn train --plan`` starts from; a
         ``--set`` of the same name wins."""
         MODELS[kind]  # an unknown kind is refused
         out = {f"train.{k}": v for k, v in self.train.to_dict().items()}
-        out.update({f"model.{k}": v for k, v in self.model_settings(kind, noisy=noisy).items()})
+        out.update({f"model.{k}": v for k, v in self.model_settings(kind).items()})
         return out
 
-    def model_settings(self, kind: str, *, noisy: bool = False) -> dict[str, Any]:
-        """The plan's model settings for a run of ``kind`` (field name → value), ``noisy`` as in
-        :meth:`settings`."""
-        return {**self.model.get(kind, {}), **(self.noisy_model.get(kind, {}) if noisy else {})}
+    def model_settings(self, kind: str) -> dict[str, Any]:
+        """The plan's model settings for a run of ``kind`` (field name → value)."""
+        return dict(self.model.get(kind, {}))
 
 
-#: Validation loss at or below which ``auto`` keeps its warm-up and skips Adam
-#: (``train.warmup_accept``). Measured after 400 warm-up iterations, width 32, data seeds 0 and 1:
-#: ``solid_body_vortex`` (a flow the linear far field explains) 1.1e-8, ``steady_vortex`` (a
-#: Lamb–Oseen vortex it does not) 0.15 — the threshold sits two decades above the first.
-AUTO_WARMUP_ACCEPT = 1e-6
+#: The paper's optimiser and loss where they differ from the defaults: Adam alone, the one-step
+#: loss beside the derivative loss, the annealed flow penalty (``adam`` and the plans built on it).
+PAPER_TRAIN = TrainConfig(
+    warmup_steps=0, warmup_accept=0.0, lbfgs_steps=0, lbfgs_pairs=8192, w_step=1.0, lambda_flow=1e-6
+)
+
+#: The paper's FHNN where it differs from the defaults: width 64, every window alike.
+PAPER_FHNN = {"width": 64, "slow_weight": 0.0}
 
 #: The plan ``fhnn train`` and :func:`fhnn.train` use when none is named.
 DEFAULT_PLAN = "auto"
@@ -70,87 +67,45 @@ PLANS: dict[str, TrainingPlan] = {
     for p in (
         TrainingPlan(
             "auto",
-            "the default. FHNN width 32; L-BFGS warm-up of the linear flow and coefficients (400); "
-            "if its validation loss is <= 1e-6 the warm-up is kept and L-BFGS polishes everything "
-            "(the warmup-polish route), otherwise it is discarded and 20,000 Adam steps and the "
-            "polish (10,000) follow from the initial model (the adam-polish route); models without a "
-            "warm-up part take the second route; 4,000 pairs. Where derivatives are measured the "
-            "loss is the derivative loss alone (no one-step loss) and there is no flow penalty; on "
-            "noise-free observations each FHNN window is weighted by its slowness (slow_weight 1)",
-            TrainConfig(
-                warmup_steps=400,
-                warmup_accept=AUTO_WARMUP_ACCEPT,
-                # chosen on the validation loss, data seed 0, with the terms below: 20,000 steps
-                # against 12,000 lowered it on all five actuated scenarios (obstacle 2.75e-5 ->
-                # 1.16e-5, time_varying_vortex 1.80e-6 -> 1.41e-6, steady_vortex 2.84e-7 -> 2.61e-7,
-                # noisy_flow 3.64e-5 -> 3.37e-5, wave 1.44e-7 -> 1.20e-7); and a polish of 1,200
-                # against 700 after them (obstacle 1.14e-5 -> 1.07e-5, time_varying_vortex 1.29e-6
-                # -> 7.1e-7, steady_vortex 2.94e-7 -> 1.33e-7, wave 1.22e-7 -> 8.0e-8, noisy_flow
-                # 3.37e-5 -> 3.38e-5); then a polish of 5,000 against 1,200, data seed 0
-                # (docs/benchmarks/plan_selection.txt, G): steady_vortex 1.33e-7 -> 8.3e-9,
-                # time_varying_vortex 7.1e-7 -> 1.3e-7, obstacle 1.07e-5 -> 4.2e-6, wave 8.0e-8 ->
-                # 5.5e-9, solid_body_vortex 2.4e-9 -> 3.8e-10, noisy_flow 3.38e-5 -> 3.14e-5;
-                # confirmed on data seed 1 (not used to choose): 9.4e-8 -> 3.1e-8, 9.0e-7 -> 3.8e-7,
-                # 1.27e-6 -> 4.9e-8, 1.23e-7 -> 3.7e-8, 6.9e-10 -> 4.1e-11, noisy_flow 3.56e-5 ->
-                # 3.61e-5 (a tie: its loss is the observation noise). The polish is what pins the
-                # flow down, and with it the drag (time_varying_vortex c_l 7.4 -> 0.47 % off, flow
-                # 0.82 -> 0.21 %), at about twice the training time. Then 10,000 against 5,000
-                # (plan_selection.txt, K; best validation loss, data seed 0 | seed 1): steady_vortex
-                # 8.26e-9 -> 2.72e-9 | 3.14e-8 -> 2.30e-8, time_varying_vortex 1.29e-7 -> 5.08e-8 |
-                # 3.77e-7 tied, obstacle 4.2e-6 -> 1.83e-6 | 4.92e-8 -> 2.61e-8, wave 5.54e-9 ->
-                # 3.22e-9 | 3.66e-8 -> 2.65e-8, noisy_flow 3.14e-5 -> 3.12e-5 | tied, solid_body_vortex
-                # 3.8e-10 -> 8.9e-12 | 4.1e-11 -> 2.8e-11: lower or tied everywhere; with L-BFGS on one
-                # vector it fits issue 12's time targets (M: solid 88 s, steady 95 s).
-                steps=20000,
-                lbfgs_steps=10000,
-                # 4,000 pairs: validation loss 2.01e-9 against 1.995e-9 (solid_body_vortex) and
-                # 3.05e-7 against 3.18e-7 (steady_vortex) with 8,000, data seed 1, at ~0.64x the time
-                lbfgs_pairs=4000,
-                # measured derivatives make the one-step loss redundant where the data are clean
-                # and a noise amplifier where they are not (its targets are the next observed
-                # state, noise over a 0.05 s step): the derivative loss alone, data seed 0, same
-                # plan otherwise: noisy_flow RMSE(pos) of 5 s validation rollouts 1.75e-3 ->
-                # 3.4e-4 m, steady_vortex 6.97e-5 -> 6.98e-5 m (c_l 1.6 -> 1.4 % off), at ~0.6x the
-                # cost of an Adam step. Data without measured derivatives turn it back on
-                # (data_settings).
-                w_step=0.0,
-                # the flow penalty at its former 1e-6, annealed: validation losses within 2 % of
-                # none on all five actuated scenarios (data seed 0), for 20-35 % of the training time
-                lambda_flow=0.0,
-            ),
-            # the slow-window weighting at p = 1 (FHNNConfig.slow_weight) on noise-free
-            # observations, chosen on the validation split and the recovery against the simulator
-            # (docs/benchmarks/slow_weight.txt 5-9): the full plan on steady_vortex, data seed 0 |
-            # seed 1 (not used to choose): c_l 0.82 -> 0.12 % | 0.68 -> 0.15 % off, c_q within
-            # 4.20 -> 0.74 % | 3.33 -> 0.89 % in every sigma band where the quadratic drag is >=
-            # 20 % of the drag; on the H100/H200 for all six data sets: time_varying_vortex c_l
-            # 0.49 -> 0.13 %, wave 1.72 -> 1.29 %, obstacle and solid_body_vortex validation loss
-            # 8x and 17x lower. On noisy_flow's noisy observations it was worse (m_ay 0.33 ->
-            # 2.28 %, c_l 2.11 -> 4.09 % on a second job seed): noisy_model turns it off there
-            model={"fhnn": {"width": 32, "slow_weight": 1.0}},
-            noisy_model={"fhnn": {"slow_weight": 0.0}},
+            "the default: the configuration defaults (TrainConfig(), FHNNConfig()). FHNN width 32; "
+            "L-BFGS warm-up of the linear flow and coefficients (400); if its validation loss is "
+            "<= 1e-6 the warm-up is kept and L-BFGS polishes everything (the warmup-polish route), "
+            "otherwise it is discarded and 20,000 Adam steps and the polish (10,000) follow from the "
+            "initial model (the adam-polish route); models without a warm-up part take the second "
+            "route; 4,000 pairs. Where derivatives are measured the loss is the derivative loss "
+            "alone (no one-step loss) and there is no flow penalty; on noise-free observations each "
+            "FHNN window is weighted by its slowness (slow_weight 1)",
+            TrainConfig(),
         ),
         TrainingPlan(
-            "adam", "20,000 Adam steps, piecewise-constant rate (the paper's optimiser)", TrainConfig()
+            "adam",
+            "20,000 Adam steps, piecewise-constant rate (the paper's optimiser, loss and FHNN width 64)",
+            PAPER_TRAIN,
+            model={"fhnn": PAPER_FHNN},
         ),
         TrainingPlan(
             "warmup-polish",
             "FHNN width 32; L-BFGS warm-up of the linear flow and coefficients (400), then L-BFGS on "
             "everything (400); solid_body_vortex: RMSE(pos) 6.7e-6 / 1.9e-5 / 3.4e-3 m at 1 / 5 / 60 s "
             "in ~100 s",
-            TrainConfig(steps=0, warmup_steps=400, lbfgs_steps=400, lbfgs_pairs=8000),
+            PAPER_TRAIN.replace(steps=0, warmup_steps=400, lbfgs_steps=400, lbfgs_pairs=8000),
             # chosen on the validation loss: width 32 reached 1.34e-9 in 90 s against 7.8e-9 in 158 s
             # at width 64, and on a second data seed 1.56e-9 in 87 s against 3.1e-9 in 154 s
-            model={"fhnn": {"width": 32}},
+            model={"fhnn": {**PAPER_FHNN, "width": 32}},
         ),
         TrainingPlan(
             "adam-polish",
             "12,000 Adam steps, then L-BFGS (700) on 8,000 pairs; steady_vortex (actuated): "
             "RMSE(pos) 5.1e-5 m at 5 s, masses within 0.55 % and c_l within 0.19 %, in ~340 s",
-            TrainConfig(steps=12000, lbfgs_steps=700, lbfgs_pairs=8000),
+            PAPER_TRAIN.replace(steps=12000, lbfgs_steps=700, lbfgs_pairs=8000),
+            model={"fhnn": PAPER_FHNN},
         ),
     )
 }
+
+#: The plan a new run starts from when none is named and the data's velocities were estimated
+#: (:func:`default_settings`); :func:`data_settings` then sets the multi-step loss, measured so.
+ESTIMATED_VELOCITY_PLAN = "adam"
 
 
 #: Multi-step window [samples] of the loss on positions used when velocities were estimated.
@@ -208,7 +163,7 @@ def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
       0.34 / 0.66 %.
     - and each window's residuals weighed by their covariance under its start errors
       (``train.shoot_noise``: the import's position noise and its bootstrap estimate of the
-      velocities' error, :func:`fhnn.data.table.start_errors`). A window starts from a noisy
+      velocities' error, :func:`fhnn.data.observation.start_errors`). A window starts from a noisy
       position and a smoothed velocity; under the plain mean square the model lowers the loss by
       damping that start error, which biased the drag up where relative speeds are small (c_l
       too high, c_q too low). On issue 14's data, data seed 0, the rest as above (σ_v given as
@@ -281,6 +236,8 @@ def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
     (``c_l/(M+m_a)`` 4.2 → 3.9 %, ``c_q/(M+m_a)`` 10.3 → 9.7 %).
     """
     out: dict[str, Any] = {}
+    if is_noisy(dataset):
+        out.update({f"model.{k}": v for k, v in noisy_model_settings(kind).items()})
     if kind == "fhnn" and dataset.masses_are_gauge:
         out["model.added_mass"] = "constant"
     if "derivatives" not in dataset.measured:
@@ -311,21 +268,24 @@ def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
 
 def default_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
     """The plan settings a new run of ``kind`` on ``dataset`` starts from when no plan is named
-    (``fhnn train`` without ``--plan``, :func:`fhnn.train` without a configuration):
-    :data:`DEFAULT_PLAN`'s (its noisy-observation model settings where :func:`is_noisy`), or none
-    (the training defaults) for data whose velocities were estimated — :func:`data_settings` then
-    sets the multi-step loss and its length, measured at the default width."""
-    if "velocities" not in dataset.measured:
-        MODELS[kind]  # an unknown kind is refused
-        return {}
-    return PLANS[DEFAULT_PLAN].settings(kind, noisy=is_noisy(dataset))
+    (``fhnn train`` without ``--plan``, :func:`fhnn.train` without one): :data:`DEFAULT_PLAN`'s,
+    or :data:`ESTIMATED_VELOCITY_PLAN`'s for data whose velocities were estimated."""
+    name = ESTIMATED_VELOCITY_PLAN if "velocities" not in dataset.measured else DEFAULT_PLAN
+    return PLANS[name].settings(kind)
 
 
 def is_noisy(dataset: Dataset) -> bool:
     """Whether ``dataset``'s observations carry noise (``obs_noise > 0``): a simulation with
-    observation noise or an imported table (whose noise is estimated, never zero); a plan's
-    ``noisy_model`` settings apply to it."""
+    observation noise or an imported table (whose noise is estimated, never zero)."""
     return dataset.obs_noise > 0
+
+
+def noisy_model_settings(kind: str) -> dict[str, Any]:
+    """Model settings (field → value) that observations with noise call for: FHNN windows not
+    weighted by their slowness (``slow_weight`` 0). On ``noisy_flow`` the weighting was worse
+    than none (m_ay 0.33 → 2.28 %, c_l 2.11 → 4.09 % off on a second job seed), while on the
+    noise-free data sets it settled the drag split (``docs/benchmarks/slow_weight.txt``)."""
+    return {"slow_weight": 0.0} if kind == "fhnn" else {}
 
 
 def get_plan(name: str) -> TrainingPlan:
@@ -336,14 +296,17 @@ def get_plan(name: str) -> TrainingPlan:
 
 
 __all__ = [
-    "AUTO_WARMUP_ACCEPT",
     "DEFAULT_PLAN",
     "ESTIMATED_VELOCITY_LR_C_L",
+    "ESTIMATED_VELOCITY_PLAN",
     "ESTIMATED_VELOCITY_SHOOT",
+    "PAPER_FHNN",
+    "PAPER_TRAIN",
     "PLANS",
     "TrainingPlan",
     "data_settings",
     "default_settings",
     "get_plan",
     "is_noisy",
+    "noisy_model_settings",
 ]

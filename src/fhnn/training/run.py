@@ -33,14 +33,15 @@ import jax
 import numpy as np
 
 from fhnn.config import Config, check_setting_names, deep_merge, frozen_config, nest
+from fhnn.data.clock import dataset_clock
 from fhnn.data.dataset import IMPORTED, Dataset, read_dataset
-from fhnn.data.table import dataset_clock
 from fhnn.data.windows import Windows
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import check_new_folder, commit_files, recover_files
 from fhnn.models.base import AbstractModel, AbstractVectorField
 from fhnn.models.registry import MODELS
 from fhnn.runtime import __version__
+from fhnn.training.plans import PLANS
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
 RUN_FORMAT = "fhnn-run"
@@ -60,7 +61,7 @@ class RunConfig(Config):
     """Everything that decides a training run, besides its data: the model kind, the kind's
     configuration and the training configuration. Settings are addressed with dotted names —
     ``kind``, ``model.<field>`` (see the kind's configuration class) and ``train.<field>``
-    (:class:`~fhnn.training.trainer.TrainConfig`).
+    (:class:`~fhnn.training.train_config.TrainConfig`).
 
     Attributes:
         kind: a model kind of :data:`~fhnn.models.registry.MODELS`.
@@ -524,8 +525,16 @@ class Run:
         if expect_model is not None and kind != expect_model:
             raise DataFormatError(f"{folder}: checkpoint is a {kind!r} model, not {expect_model!r}")
         try:
-            model_config = {**MODELS[kind].stored_defaults, **info["model_config"]}
-            config = RunConfig.from_dict({"kind": kind, "model": model_config, "train": info["train_config"]})
+            # a field a run predates takes the value that meant "off" when it was stored: the
+            # paper's settings, which were the configuration defaults then (plans.PAPER_*)
+            former = PLANS["adam"]
+            model_config = {
+                **MODELS[kind].stored_defaults,
+                **former.model_settings(kind),
+                **info["model_config"],
+            }
+            train_config = {**former.train.to_dict(), **info["train_config"]}
+            config = RunConfig.from_dict({"kind": kind, "model": model_config, "train": train_config})
         except (ConfigError, KeyError, TypeError) as exc:
             raise DataFormatError(f"{info_path}: unreadable configuration ({exc})") from None
         meta = {k: info[k] for k in ("data", "data_sha256", "scenario", "data_seed", "clock") if k in info}

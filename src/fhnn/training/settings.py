@@ -18,7 +18,7 @@ from fhnn.config import coerce, get_setting, read_settings_file
 from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
-from fhnn.training.plans import DEFAULT_PLAN, PLANS, data_settings, default_settings, get_plan, is_noisy
+from fhnn.training.plans import DEFAULT_PLAN, data_settings, default_settings, get_plan, is_noisy
 from fhnn.training.run import RunConfig
 
 
@@ -133,7 +133,7 @@ def resolve(
     given = set(settings)
     merged = dict(settings)
     if plan is not None:  # the plan's settings for these data, below any setting given
-        merged = {**get_plan(plan).settings(kind, noisy=is_noisy(dataset)), **merged}
+        merged = {**get_plan(plan).settings(kind), **merged}
     start = default_settings(dataset, kind) if plan is None else {}
     implied = {k: v for k, v in data_settings(dataset, kind).items() if k not in given}
     before = RunConfig().with_settings({**start, **merged})
@@ -141,9 +141,9 @@ def resolve(
     notes: list[str] = []
     if fresh:
         said = {k: v for k, v in implied.items() if get_setting(before, k) != get_setting(config, k)}
+        said.pop("model.slow_weight", None)  # said by the window weights' note
         notes = _implied_notes(said, dataset, source)
-        default_plan = (plan or DEFAULT_PLAN) == DEFAULT_PLAN
-        if "model.slow_weight" not in given and kind == "fhnn" and default_plan:
+        if kind == "fhnn" and "model.slow_weight" not in given and plan in (None, DEFAULT_PLAN):
             notes += _window_weights_note(source, dataset, config)
     return Resolution(kind, merged, start, implied, config, notes)
 
@@ -170,7 +170,7 @@ def _window_weights_note(source: str, dataset: Dataset, config: RunConfig) -> li
     weight = float(config.model.slow_weight)  # type: ignore[union-attr]
     if weight > 0:
         text = f"noise-free observations: each window weighted by its slowness (model.slow_weight={weight:g})"
-    elif is_noisy(dataset) and "slow_weight" in PLANS[DEFAULT_PLAN].noisy_model.get("fhnn", {}):
+    elif is_noisy(dataset):
         text = (
             f"observations with noise (obs_noise {dataset.obs_noise:.3g}): windows not weighted by their "
             "slowness (model.slow_weight=0; the default plan weighs them on noise-free observations only)"

@@ -77,7 +77,7 @@ class TrackFit:
             tree of ``model``, as :meth:`~fhnn.models.base.AbstractModel.track_parameters`).
         split: the tracks; each rolled out from a fitted start state over its own sample times.
         weights: each track's weight ``(N,)`` in the sum of squares (default: 1 each; a
-            bootstrap member's trajectory weights, :func:`~fhnn.training.trainer.bootstrap_weights`).
+            bootstrap member's trajectory weights, :func:`~fhnn.training.sampling.bootstrap_weights`).
         mask: the samples that count ``(N, T)`` (default: the split's real samples; a subset of
             them scores a part of each track, as :class:`ForecastScore` does).
     """
