@@ -10,7 +10,7 @@ import typer
 from fhnn.api.train import train as train_fit
 from fhnn.cli.options import ConfigFileOption, QuietOption, SetOption, app
 from fhnn.models.registry import MODELS
-from fhnn.training.plans import DEFAULT_PLAN, PLANS
+from fhnn.training.plans import DEFAULT_PLAN, ESTIMATED_VELOCITY_PLAN, PLANS
 from fhnn.training.settings import parse_params
 
 
@@ -26,8 +26,9 @@ def train(
         str | None,
         typer.Option(
             help=f"Training plan: {'|'.join(PLANS)} (its training settings and the model settings it "
-            f"was measured with, which may differ for noisy observations; --set wins; see README) "
-            f"[default: {DEFAULT_PLAN}; the training defaults on data with estimated velocities]"
+            f"was measured with; noisy observations turn the FHNN's slow-window weights off; --set "
+            f"wins; see README) "
+            f"[default: {DEFAULT_PLAN}; {ESTIMATED_VELOCITY_PLAN} on data with estimated velocities]"
         ),
     ] = None,
     steps: Annotated[
