@@ -135,3 +135,13 @@ def paper_fhnn(**fields: object) -> FHNNConfig:
 
 #: The paper's run configuration (FHNN and training of the ``adam`` plan).
 PAPER_RUN = RunConfig().with_settings(PLANS["adam"].settings("fhnn"))
+
+
+def run_cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
+    """``fhnn ARGV`` in this process: its exit code, standard output and standard error."""
+    from fhnn.cli.app import main
+
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    captured = capsys.readouterr()
+    return info.value.code, captured.out, captured.err

@@ -17,7 +17,6 @@ import typer
 
 import fhnn
 from fhnn.api import train as api_train
-from fhnn.cli.app import main
 from fhnn.cli.options import app
 from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.observation import observe
@@ -32,7 +31,7 @@ from fhnn.training.ensemble import member_folder
 from fhnn.training.run import RunConfig
 from fhnn.training.train_config import TrainConfig
 
-from .conftest import small_dataset
+from .conftest import run_cli, small_dataset
 
 #: Short phases of every kind (warm-up, Adam, polish) at width 8, as explicit settings.
 SHORT = {
@@ -51,11 +50,7 @@ def _set(settings: dict) -> list[str]:
     return [arg for k, v in settings.items() for arg in ("--set", f"{k}={v}")]
 
 
-def cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as info:
-        main(argv)
-    captured = capsys.readouterr()
-    return info.value.code, captured.out, captured.err
+cli = run_cli
 
 
 def _run_json(folder: Path) -> dict:
@@ -184,6 +179,11 @@ def test_the_notebook_example_runs_from_a_dataframe(table_file: Path, tmp_path: 
     assert (coefficients["c_l_lo"] <= coefficients["c_l_hi"]).all()
     flow = fit.flow()
     assert {"u", "v", "u_lo", "u_hi"} <= set(flow.data_vars) and flow["u"].ndim == 2
+    inspection = fit.inspect()
+    assert inspection.kind == "ensemble" and inspection.members == 2
+    for run in fit.runs:  # each member's figures in its own folder
+        assert {run.folder / "flow.png", run.folder / "coefficients.png"} <= set(inspection.written)
+        assert (run.folder / "flow.png").stat().st_size > 0
     later = fhnn.load(tmp_path / "a")  # its data set was written beside the runs
     assert later.is_ensemble and later.dataset.extra["import"] == data.extra["import"]
     forecast = later.predict(1.0, history=df[df["traj_id"] == df["traj_id"].iloc[0]], samples=4)

@@ -4,6 +4,7 @@ as ``fhnn simulate``, ``fhnn import`` and ``fhnn info``."""
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -16,7 +17,7 @@ from fhnn.data.conversion import ImportSettings, parse_split, table_to_dataset
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
-from fhnn.data.table import read_table
+from fhnn.data.table import parse_columns, read_table
 from fhnn.files import check_output_path
 from fhnn.physics.scenarios import Scenario, scenario_class
 
@@ -90,6 +91,8 @@ def import_table(
     smoother: str = "auto",
     max_gap: str | float = "auto",
     outliers: str | float | None = OUTLIER_SIGMAS,
+    columns: Mapping[str, str] | str | None = None,
+    time_unit: str = "s",
 ) -> Dataset:
     """A data set from a table of measured trajectories, as ``fhnn import`` makes it.
 
@@ -110,6 +113,10 @@ def import_table(
             (``"auto"``: more than 10× its median step; ``"inf"``: never).
         outliers: drop a position more than this many noise levels off its neighbours' cubic
             (``"off"`` or ``None``: keep every sample).
+        columns: the table's names of our columns where they differ, e.g. ``{"traj_id": "track",
+            "t": "time", "x": "pos_x"}`` or ``"traj_id=track,t=time,x=pos_x"``.
+        time_unit: the unit of numeric times (``"s"``, ``"ms"``, ``"us"``, ``"min"``, ``"h"``),
+            read as seconds.
 
     Returns:
         The :class:`~fhnn.data.dataset.Dataset`.
@@ -118,6 +125,7 @@ def import_table(
         ConfigError: a bad setting.
         DataFormatError: a table that is missing, unreadable or inconsistent.
     """
+    mapping = parse_columns(columns)
     settings = ImportSettings(
         mass=mass,
         area=area,
@@ -133,7 +141,10 @@ def import_table(
     if output is not None:
         check_output_path(Path(output))
     source = Path(table).name if isinstance(table, str | os.PathLike) else "DataFrame"
-    dataset = table_to_dataset(read_table(table), settings, source=source)
+    read = read_table(table, columns=mapping, time_unit=time_unit)
+    dataset = table_to_dataset(read, settings, source=source, time_unit=time_unit)
+    for text in dataset.extra["import"]["warnings"]:
+        warnings.warn(text, UserWarning, stacklevel=2)
     if output is not None:
         write_dataset(dataset, output)
     return dataset

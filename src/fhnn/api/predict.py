@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -13,7 +13,15 @@ import numpy as np
 from fhnn.api.fit import Fit
 from fhnn.data.cleaning import OUTLIER_SIGMAS, drop_table_outliers
 from fhnn.data.clock import SECONDS_ONLY, seconds_to_date_times
-from fhnn.data.table import Table, check_table_name, read_forcing, read_table, shift_times, write_table
+from fhnn.data.table import (
+    Table,
+    check_table_name,
+    parse_columns,
+    read_forcing,
+    read_table,
+    shift_times,
+    write_table,
+)
 from fhnn.errors import ConfigError
 from fhnn.evaluation import predict as prediction
 from fhnn.evaluation.predict import FIT_WINDOW, SAMPLES, Forecast
@@ -67,6 +75,8 @@ def predict(
     samples: int = SAMPLES,
     outliers: float | None = OUTLIER_SIGMAS,
     output: str | os.PathLike[str] | None = None,
+    columns: Mapping[str, str] | str | None = None,
+    time_unit: str = "s",
 ) -> Prediction:
     """Forecast with a trained model from a given state or from the end of observed tracks.
 
@@ -89,6 +99,10 @@ def predict(
         outliers: drop a history position more than this many noise levels off the cubic through
             its neighbours before fitting (``None``: keep all).
         output: also write the forecast here (.csv or .parquet).
+        columns: the history's and forcing table's names of our columns, as for
+            :func:`fhnn.import_table` (``{"traj_id": "track", ...}`` or ``"traj_id=track,..."``).
+        time_unit: the unit of the history's and forcing table's numeric times (``"ms"``, …),
+            read as seconds; ``t0``, ``duration``, ``dt`` and the forecast's ``t`` are seconds.
 
     Returns:
         The :class:`Prediction`; with a band (an ensemble, or a history) ``x, y, …`` are the
@@ -101,6 +115,7 @@ def predict(
     """
     if (initial is None) == (history is None):
         raise ConfigError("give --initial x,y,vx,vy or --history TABLE (one of them)")
+    mapping = parse_columns(columns)
     if output is not None:
         check_output_path(Path(output))
         check_table_name(output)
@@ -122,11 +137,15 @@ def predict(
             f"{clock['unknown']}: times are read as the model's own (its t = 0 the table's first sample)"
         )
     read_origin = SECONDS_ONLY if origin is None else origin
-    tracks = history if isinstance(history, Table) or history is None else read_table(history, read_origin)
+    tracks = (
+        history
+        if isinstance(history, Table) or history is None
+        else read_table(history, read_origin, mapping, time_unit)
+    )
     glitches = 0
     if tracks is not None:
         tracks, glitches = drop_table_outliers(tracks, outliers)
-    forces = read_forcing(forcing, read_origin) if forcing is not None else None
+    forces = read_forcing(forcing, read_origin, mapping, time_unit) if forcing is not None else None
     dates = tracks is not None and tracks.time_origin is not None
     if offset:
         if tracks is not None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -12,7 +13,7 @@ from fhnn.api.data import import_table as import_data
 from fhnn.api.data import info as data_info
 from fhnn.api.data import simulate as simulate_data
 from fhnn.cli import render
-from fhnn.cli.options import app
+from fhnn.cli.options import ColumnsOption, TimeUnitOption, app
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
 from fhnn.data.derivatives import AUTO_SPLINE_ROWS
 from fhnn.physics.scenarios import SCENARIOS, UNITS
@@ -125,6 +126,8 @@ def import_table(
             "summary; off: keep every sample.",
         ),
     ] = f"{OUTLIER_SIGMAS:g}",
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = "s",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
     """Import measured trajectories from a table into a data set: rows in any order, irregular times,
@@ -132,20 +135,26 @@ def import_table(
     (--max-gap) becomes pieces; glitches (--outliers) are dropped and counted; velocities the table
     lacks are estimated from the positions (a smoother held to the noise level they show).
     Trajectories are split into train/val/test by a seeded permutation."""
-    dataset = import_data(
-        table,
-        output,
-        mass=mass,
-        area=area,
-        rho=rho,
-        volume=volume,
-        split=split,
-        seed=seed,
-        time_dependent=time_dependent,
-        smoother=smoother,
-        max_gap=max_gap,
-        outliers=outliers,
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        dataset = import_data(
+            table,
+            output,
+            mass=mass,
+            area=area,
+            rho=rho,
+            volume=volume,
+            split=split,
+            seed=seed,
+            time_dependent=time_dependent,
+            smoother=smoother,
+            max_gap=max_gap,
+            outliers=outliers,
+            columns=columns,
+            time_unit=time_unit,
+        )
+    for warning in caught:
+        render.note(f"warning: {warning.message}")
     if not quiet:
         render.summary(data_info(dataset), str(output))
 

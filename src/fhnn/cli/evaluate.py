@@ -13,7 +13,7 @@ from rich.table import Table
 from fhnn.api.evaluate import evaluate as evaluate_fit
 from fhnn.api.predict import predict as predict_fit
 from fhnn.cli import render
-from fhnn.cli.options import DataArgument, RunDirArgument, app
+from fhnn.cli.options import ColumnsOption, DataArgument, RunDirArgument, TimeUnitOption, app
 from fhnn.data.cleaning import OUTLIER_SIGMAS, parse_outliers
 from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import METRICS
@@ -139,6 +139,8 @@ def predict(
             "--output", "-o", help="Write the forecast here (.csv or .parquet) [default: CSV on stdout]."
         ),
     ] = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = "s",
 ) -> None:
     """Forecast with a trained model from a given state or from the end of observed tracks: columns
     traj_id, t, x, y, vx, vy; with a band — from an ensemble (fhnn train --seeds N), from
@@ -171,6 +173,8 @@ def predict(
         samples=samples,
         outliers=parse_outliers(outliers),
         output=output,
+        columns=columns,
+        time_unit=time_unit,
     )
     for text in result.notes + result.warnings:
         render.note(text)

@@ -70,3 +70,24 @@ def SetOption(example: str) -> Any:
             help=f"A setting by dotted name, e.g. {example} (repeatable; wins over --config).",
         ),
     ]
+
+
+#: ``--columns`` of ``fhnn import`` and ``fhnn predict``: the table's names of our columns.
+ColumnsOption = Annotated[
+    str | None,
+    typer.Option(
+        "--columns",
+        help="The table's names of fhnn's columns where they differ, e.g. "
+        "traj_id=track,t=time,x=pos_x,y=pos_y,Fx=thrust_x,Fy=thrust_y.",
+    ),
+]
+
+
+#: ``--time-unit`` of ``fhnn import`` and ``fhnn predict``.
+TimeUnitOption = Annotated[
+    str,
+    typer.Option(
+        "--time-unit",
+        help="Unit of the table's numeric times: s, ms, us, min or h (read as seconds).",
+    ),
+]

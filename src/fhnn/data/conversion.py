@@ -10,9 +10,12 @@ import numpy as np
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS, split_at_gaps, without_outliers
 from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split
 from fhnn.data.derivatives import AUTO, choose_smoother, derivative_error, noise_level, smooth_derivatives
-from fhnn.data.table import MIN_SAMPLES, PAD_STEP, Table, position_series
+from fhnn.data.table import MIN_SAMPLES, PAD_STEP, Table, Trajectory, position_series
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.runtime import __version__
+
+#: How many dropped glitches the import record locates (the count is always whole).
+OUTLIERS_LISTED = 20
 
 
 @dataclasses.dataclass(frozen=True)
@@ -134,7 +137,9 @@ def _split_of(items: list[dict[str, np.ndarray]]) -> Split:
     )
 
 
-def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -> Dataset:
+def table_to_dataset(
+    table: Table, settings: ImportSettings, source: str = "", *, time_unit: str = "s"
+) -> Dataset:
     """A data set of ``table``'s trajectories (see the module docstring).
 
     Times are shifted so that the earliest sample of the table is at ``t = 0`` (the shift is kept
@@ -153,7 +158,8 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     has_vel = trajs[0].vel is not None
     has_force = trajs[0].force is not None
     t0 = min(float(tr.t[0]) for tr in trajs)
-    trajs, pos_noise, outliers, touched = without_outliers(trajs, settings.outlier_sigmas)
+    glitches: list[tuple[str, float]] = []
+    trajs, pos_noise, outliers, touched = without_outliers(trajs, settings.outlier_sigmas, glitches)
     series = position_series(trajs)
     smoother = choose_smoother(settings.smoother, table.rows)
     vel_noise = vel_error = None
@@ -200,6 +206,7 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
     }
     splits = {name: _split_of([items[i] for i in members[name]]) for name in SPLITS}
     steps = np.concatenate([np.diff(tr.t) for tr in trajs])
+    warnings = _clock_warnings(trajs, steps)
     measured = ["positions", *(["velocities"] if has_vel else []), *(["forces"] if has_force else [])]
     volume = settings.volume if settings.volume is not None else settings.mass / settings.rho
     ids = {name: [trajs[i].traj_id for i in members[name]] for name in SPLITS}
@@ -218,8 +225,11 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         "outlier_sigmas": settings.outlier_sigmas,
         "outliers_dropped": outliers,
         "outlier_trajectories": touched,
+        # where (trajectory or piece, time on the table's clock [s]): the first OUTLIERS_LISTED
+        "outliers_at": [[traj, time] for traj, time in glitches[:OUTLIERS_LISTED]],
         "time_offset": t0,
         "time_origin": table.time_origin,
+        "time_unit": time_unit,
         "position_noise": pos_noise,
         "velocity_noise": vel_noise,
         "velocity_error": vel_error,
@@ -228,6 +238,7 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         "step_median": float(np.median(steps)),
         "step_range": [float(steps.min()), float(steps.max())],
         "traj_ids": ids,
+        "warnings": warnings,
     }
     return Dataset(
         scenario=IMPORTED,
@@ -241,3 +252,21 @@ def table_to_dataset(table: Table, settings: ImportSettings, source: str = "") -
         splits=splits,
         extra={"measured": measured, "import": record},
     )
+
+
+#: A median step [s] above which, with a median speed below :data:`SLOW_SPEED` [m/s], the times
+#: look like milliseconds read as seconds (a tank's tracker at 10 Hz: steps of 100, speeds 1e-4).
+LONG_STEP = 10.0
+SLOW_SPEED = 1e-3
+
+
+def _clock_warnings(trajs: list[Trajectory], steps: np.ndarray) -> list[str]:
+    """What looks wrong with the table's clock: a warning each (empty: nothing)."""
+    speeds = np.concatenate([np.hypot(*np.diff(tr.pos, axis=0).T) / np.diff(tr.t) for tr in trajs])
+    step, speed = float(np.median(steps)), float(np.median(speeds))
+    if step > LONG_STEP and speed < SLOW_SPEED:
+        return [
+            f"the median step is {step:.4g} s and the median speed {speed:.3g} m/s: if the times are "
+            "milliseconds (or another unit), import again with --time-unit"
+        ]
+    return []

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -248,24 +249,95 @@ def _frame_to_arrow(frame: Any) -> tuple[Path, Any]:
             f"not a table (a pandas DataFrame, or a .csv or .parquet path): {exc}"
         ) from None
     names = [str(name).strip() for name in arrow.column_names]
-    arrow = arrow.rename_columns(names)
-    if "traj_id" in names:
-        i = names.index("traj_id")
-        ids = pa.array(["" if v is None else str(v) for v in arrow.column(i).to_pylist()], pa.string())
-        arrow = arrow.set_column(i, "traj_id", ids)
-    return Path("DataFrame"), arrow
+    return Path("DataFrame"), arrow.rename_columns(names)
+
+
+def _ids_as_text(arrow: Any) -> Any:
+    """``arrow`` with its ``traj_id`` column as text (a DataFrame's may hold numbers)."""
+    import pyarrow as pa
+
+    i = arrow.column_names.index("traj_id")
+    ids = pa.array(["" if v is None else str(v) for v in arrow.column(i).to_pylist()], pa.string())
+    return arrow.set_column(i, "traj_id", ids)
+
+
+#: The units numeric times may be given in (``--time-unit``), in seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0, "h": 3600.0}
+
+
+def time_unit_seconds(unit: str) -> float:
+    """Seconds in one ``unit`` of :data:`TIME_UNITS`; an unknown unit is a ConfigError."""
+    if unit not in TIME_UNITS:
+        raise ConfigError(f"--time-unit must be one of {', '.join(TIME_UNITS)}, got {unit!r}")
+    return TIME_UNITS[unit]
+
+
+def parse_columns(text: str | Mapping[str, str] | None) -> dict[str, str]:
+    """A column mapping: ``"traj_id=track,t=time,x=pos_x"`` (or a mapping) → ``{our name: the
+    table's name}``; ``None`` or ``""``: none.
+
+    Raises:
+        ConfigError: an item without ``=``, a name that is not one of :data:`COLUMNS`, or a name
+            or a table column mapped twice.
+    """
+    if not text:
+        return {}
+    if isinstance(text, Mapping):
+        items = [(str(k).strip(), str(v).strip()) for k, v in text.items()]
+    else:
+        items = []
+        for item in text.split(","):
+            ours, sep, theirs = item.partition("=")
+            if not sep or not ours.strip() or not theirs.strip():
+                raise ConfigError(f"--columns expects NAME=COLUMN[,NAME=COLUMN...], got {item.strip()!r}")
+            items.append((ours.strip(), theirs.strip()))
+    out: dict[str, str] = {}
+    for ours, theirs in items:
+        if ours not in COLUMNS:
+            raise ConfigError(f"--columns: {ours!r} is not a column of fhnn's; they are {', '.join(COLUMNS)}")
+        if ours in out:
+            raise ConfigError(f"--columns: {ours} is mapped twice")
+        if theirs in out.values():
+            raise ConfigError(f"--columns: the table's column {theirs!r} is mapped twice")
+        out[ours] = theirs
+    return out
+
+
+def _rename(path: Path, arrow: Any, columns: Mapping[str, str]) -> Any:
+    """``arrow`` with the table's columns renamed to ours by ``columns`` (ours → theirs)."""
+    names = list(arrow.column_names)
+    missing = [f"{theirs!r} (for {ours})" for ours, theirs in columns.items() if theirs not in names]
+    if missing:
+        raise DataFormatError(f"{path}: no column {', '.join(missing)} (have {', '.join(names)})")
+    back = {theirs: ours for ours, theirs in columns.items()}
+    clash = [n for n in names if n in columns and n not in back]
+    if clash:
+        raise DataFormatError(
+            f"{path}: column(s) {', '.join(clash)} would be replaced by the mapped ones; drop or map them"
+        )
+    return arrow.rename_columns([back.get(n, n) for n in names])
 
 
 def _open(
-    path: str | os.PathLike[str] | Any, kind: str, required: tuple[str, ...], allowed: tuple[str, ...]
+    path: str | os.PathLike[str] | Any,
+    kind: str,
+    required: tuple[str, ...],
+    allowed: tuple[str, ...],
+    columns: Mapping[str, str] | None = None,
 ) -> tuple[Path, Any, list[str]]:
-    """The checked path (or a ``pandas.DataFrame``), its Arrow table and column names; missing
-    ``required`` or columns not ``allowed`` are errors."""
-    if isinstance(path, str | os.PathLike):
+    """The checked path (or a ``pandas.DataFrame``), its Arrow table and column names, the
+    table's columns renamed by ``columns`` (ours → theirs); missing ``required`` or columns not
+    ``allowed`` are errors."""
+    frame = not isinstance(path, str | os.PathLike)
+    if frame:
+        path, arrow = _frame_to_arrow(path)
+    else:
         path = check_input_file(path, kind)
         arrow = _read_arrow(path)
-    else:
-        path, arrow = _frame_to_arrow(path)
+    if columns:
+        arrow = _rename(path, arrow, {k: v for k, v in columns.items() if k in allowed})
+    if frame and "traj_id" in arrow.column_names:  # a file's ids are read as text by type
+        arrow = _ids_as_text(arrow)
     names = list(arrow.column_names)
     missing = [c for c in required if c not in names]
     if missing:
@@ -314,12 +386,28 @@ def _trajectory_ids(column: Any) -> tuple[np.ndarray, np.ndarray]:
     return names[codes], rank[codes]
 
 
-def read_table(path: str | os.PathLike[str] | Any, origin: str | None = None) -> Table:
-    """Read and check a trajectory table (see the module docstring): a .csv or .parquet path, or
-    a ``pandas.DataFrame`` with the same columns; date-times count in seconds from ``origin``
-    where given (a date-time as :attr:`Table.time_origin` holds one), else from the table's
-    earliest."""
-    path, arrow, names = _open(path, "a table", REQUIRED, COLUMNS)
+def read_table(
+    path: str | os.PathLike[str] | Any,
+    origin: str | None = None,
+    columns: Mapping[str, str] | None = None,
+    time_unit: str = "s",
+) -> Table:
+    """Read and check a trajectory table (see the module docstring).
+
+    Args:
+        path: a .csv or .parquet path, or a ``pandas.DataFrame`` with the same columns.
+        origin: date-times count in seconds from this date-time (as :attr:`Table.time_origin`
+            holds one); default: from the table's earliest.
+        columns: the table's names of our columns (:func:`parse_columns`), e.g.
+            ``{"traj_id": "track", "t": "time"}``; unnamed ones keep their names.
+        time_unit: the unit of numeric times (:data:`TIME_UNITS`): they are read as seconds.
+
+    Raises:
+        ConfigError: an unknown ``time_unit``, or one other than seconds for date-times.
+        DataFormatError: a missing, unreadable or inconsistent table.
+    """
+    scale = time_unit_seconds(time_unit)
+    path, arrow, names = _open(path, "a table", REQUIRED, COLUMNS, columns)
     for a, b in OPTIONAL_PAIRS:
         if (a in names) != (b in names):
             raise DataFormatError(
@@ -330,6 +418,10 @@ def read_table(path: str | os.PathLike[str] | Any, origin: str | None = None) ->
         raise DataFormatError(f"{path}: the table has no rows")
     ids, rank = _trajectory_ids(arrow.column("traj_id"))
     times, origin = _times(path, arrow.column("t"), origin)
+    if scale != 1.0:
+        if origin is not None:
+            raise ConfigError(f"--time-unit {time_unit} applies to numeric times; {path} gives date-times")
+        times = times * scale
     values = {c: times if c == "t" else _numeric(path, c, arrow.column(c)) for c in names if c != "traj_id"}
     _reject_infinite(path, values, ids)
     gap = np.zeros(rows, dtype=bool)
@@ -363,18 +455,29 @@ FORCING_COLUMNS = ("t", "Fx", "Fy")
 
 
 def read_forcing(
-    path: str | os.PathLike[str] | Any, origin: str | None = None
+    path: str | os.PathLike[str] | Any,
+    origin: str | None = None,
+    columns: Mapping[str, str] | None = None,
+    time_unit: str = "s",
 ) -> dict[str | None, tuple[np.ndarray, np.ndarray]]:
     """A table of known forces: columns ``t, Fx, Fy`` [s, N, N] and optionally ``traj_id``; ``t``
     in seconds or as ISO-8601 date-times, counted from ``origin`` where given, as in
     :func:`read_table`. Returns ``{traj_id: (t (n,), force (n, 2))}`` sorted by time, with the
     key ``None`` for a table without ``traj_id`` (one forcing for every trajectory). Rows with a
-    missing value are dropped; a trajectory needs two rows and distinct times."""
-    path, arrow, names = _open(path, "a forcing table", FORCING_COLUMNS, (*FORCING_COLUMNS, "traj_id"))
+    missing value are dropped; a trajectory needs two rows and distinct times. ``columns``: the
+    table's names of ours and ``time_unit`` the unit of numeric times, as for :func:`read_table`."""
+    scale = time_unit_seconds(time_unit)
+    path, arrow, names = _open(
+        path, "a forcing table", FORCING_COLUMNS, (*FORCING_COLUMNS, "traj_id"), columns
+    )
     if arrow.num_rows == 0:
         raise DataFormatError(f"{path}: the table has no rows")
     values = {c: _numeric(path, c, arrow.column(c)) for c in FORCING_COLUMNS[1:]}
-    values["t"] = _times(path, arrow.column("t"), origin)[0]
+    values["t"], dates = _times(path, arrow.column("t"), origin)
+    if scale != 1.0:
+        if dates is not None:
+            raise ConfigError(f"--time-unit {time_unit} applies to numeric times; {path} gives date-times")
+        values["t"] = values["t"] * scale
     _reject_infinite(path, values, None)
     if "traj_id" in names:
         ids = np.asarray([("" if v is None else str(v)) for v in arrow.column("traj_id").to_pylist()])
