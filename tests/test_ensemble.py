@@ -148,7 +148,8 @@ def test_inspect_gives_the_members_median_and_intervals(ensemble, capsys):
     assert code == 0 and "ensemble of 3 runs" in out and "90 % interval" in out
     said = " ".join(out.split())
     assert (
-        re.search(r"│ +drag │", out) and "the data fix their sum, the total drag coefficient drag =" in said
+        re.search(r"│ +drag(?: \[N·s/m\])? +│", out)
+        and "the data fix their sum, the total drag coefficient drag =" in said
     )
     assert (
         "members trained on bootstrap weightings of the data, so it holds the data's sampling noise and "

@@ -358,7 +358,7 @@ def test_cli_train_evaluate_inspect(data, tmp_path, capsys):
     code, out = run(["inspect", str(tmp_path / "run")])
     assert code == 0 and "flow: relative L2 error" in out.out
     assert "c_q by σ band" in out.out and "quadratic share" in out.out and "drag max rel." in out.out
-    assert re.search(r"│ +drag │", out.out)
+    assert re.search(r"│ +drag(?: \[N·s/m\])? +│", out.out)
     code, out = run(["inspect", str(tmp_path / "run"), "--json"])
     drag = json.loads(out.out)["coefficients"]["_drag"]  # the total drag's ranges beside its errors
     assert 0 < drag["true_min"] <= drag["true_max"] and drag["learned_min"] <= drag["learned_max"]

@@ -569,7 +569,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
         assert info.value.code == 0, capsys.readouterr().err
     out = capsys.readouterr().out
     assert "no ground truth: these are estimates, not recovery errors" in out
-    assert re.search(r"│ +drag │", out) and "the data fix their sum" in " ".join(out.split())
+    assert re.search(r"│ +drag(?: \[N·s/m\])? +│", out) and "the data fix their sum" in " ".join(out.split())
     with pytest.raises(SystemExit):
         main(["info", str(data)])
     said = " ".join(capsys.readouterr().out.split())

@@ -92,7 +92,7 @@ def inspect(
             f"inspect needs an fhnn run; a {fit.runs[0].kind!r} model has no flow or coefficients"
         )
     if fit.is_ensemble:
-        return _ensemble(fit)
+        return _ensemble(fit, figures)
     if fit.dataset.imported:
         return _learned(fit, figures)
     return _recovery(fit, figures)
@@ -106,6 +106,16 @@ def _exports(models: list[Any], dataset: Dataset, folder: Path) -> list[Path]:
         write_coefficients_csv(eoms[0] if one else eoms, dataset, folder / "coefficients.csv"),
         write_flow_netcdf(flows[0] if one else flows, dataset, folder / "flow.nc"),
     ]
+
+
+#: The unit of each coefficient the tables show ("–": dimensionless).
+COEFFICIENT_UNITS = {"m_ax": "kg", "m_ay": "kg", "c_q": "–", "c_l": "N·s/m", "drag": "N·s/m"}
+
+
+def with_unit(name: str) -> str:
+    """A coefficient's name with its unit, as the tables show it (``"m_ax [kg]"``)."""
+    unit = COEFFICIENT_UNITS.get(name)
+    return f"{name} [{unit}]" if unit else name
 
 
 def drag_note(sigma_min: float) -> str:
@@ -138,7 +148,11 @@ def _learned(fit: Fit, figures: bool) -> Inspection:
             model.coefficients, None, dataset, folder / "coefficients", flow_of=model.eom
         )
     rows = [
-        [n, fmt(coef[n]["median"]), f"{fmt(coef[n]['learned_min'])} – {fmt(coef[n]['learned_max'])}"]
+        [
+            with_unit(n),
+            fmt(coef[n]["median"]),
+            f"{fmt(coef[n]['learned_min'])} – {fmt(coef[n]['learned_max'])}",
+        ]
         for n in ("m_ax", "m_ay", "c_q", "c_l", "drag")
     ]
     sections: list[str | TableData] = [
@@ -176,19 +190,30 @@ def _learned(fit: Fit, figures: bool) -> Inspection:
     return Inspection("learned", coef, None, sections, written)
 
 
-def _ensemble(fit: Fit) -> Inspection:
-    """An ensemble: each coefficient and ratio with the members' median and 90 % interval."""
+def _ensemble(fit: Fit, figures: bool) -> Inspection:
+    """An ensemble: each coefficient and ratio with the members' median and 90 % interval; with
+    ``figures`` each member's flow and coefficient figures in its own folder."""
     models, dataset, folder = fit.models, fit.dataset, fit.folder
     truth = None if dataset.imported else dataset.equations()
     rows = ensemble_intervals([m.eom for m in models], dataset, truth)
     written = _exports(models, dataset, folder)
+    if figures:
+        for run, model in zip(fit.runs, models, strict=True):
+            written += flow_figure(model.flow, truth.flow if truth else None, dataset, run.folder / "flow")
+            written += coefficient_figure(
+                model.coefficients,
+                truth.coefficients if truth else None,
+                dataset,
+                run.folder / "coefficients",
+                flow_of=None if truth else model.eom,
+            )
     forced = dataset.known_forcing
     columns = ["quantity", "median", "90 % interval", "rel. width"]
     if truth is not None:
         columns += ["true", "truth inside", "max rel. error"]
     cells = []
     for name, r in rows.items():
-        row = [name, fmt(r["median"]), f"{fmt(r['lo'])} – {fmt(r['hi'])}", f"{r['rel_width']:.1%}"]
+        row = [with_unit(name), fmt(r["median"]), f"{fmt(r['lo'])} – {fmt(r['hi'])}", f"{r['rel_width']:.1%}"]
         if truth is not None:
             row += [fmt(r["true"]), f"{r['coverage']:.0%} of points", f"{r['max_rel']:.2%}"]
         cells.append(row)
@@ -286,7 +311,7 @@ def _recovery_table(coef: dict[str, Any]) -> TableData:
         c = coef[name]
         rows.append(
             [
-                name.strip("_"),
+                with_unit(name.strip("_")),
                 f"{fmt(c['learned_min'])} – {fmt(c['learned_max'])}",
                 f"{fmt(c['true_min'])} – {fmt(c['true_max'])}",
                 f"{c['mean_rel']:.2%}",

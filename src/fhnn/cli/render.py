@@ -73,17 +73,29 @@ def _imported(record: dict[str, Any], body: dict[str, Any]) -> None:
             f"outliers: {record['outliers_dropped']} position(s) in {record['outlier_trajectories']} "
             f"trajectories lay more than {fmt(record['outlier_sigmas'])} noise levels from the cubic "
             "through their neighbours (a tracker's glitches?) and were dropped "
-            "(--outliers off keeps them)",
+            "(--outliers off keeps them)" + _glitch_places(record),
             soft_wrap=True,
             highlight=False,
         )
+
+
+def _glitch_places(record: dict[str, Any]) -> str:
+    """Where the import dropped glitches: ``": trajectory 'a' at t = 3.2 s, …"`` (or nothing for
+    a data set imported before the record kept them)."""
+    places = record.get("outliers_at") or []
+    if not places:
+        return ""
+    after = f" s after {record['time_origin']}" if record.get("time_origin") else " s"
+    text = ", ".join(f"trajectory {traj!r} at t = {time:.6g}{after}" for traj, time in places)
+    more = record["outliers_dropped"] - len(places)
+    return f": {text}" + (f" and {more} more" if more > 0 else "")
 
 
 def summary(info: dict[str, Any], path: str) -> None:
     """A data set's summary (:func:`fhnn.info`) as ``fhnn info`` prints it."""
     stdout.print(
         f"[bold]{path}[/bold]: scenario [bold]{info['scenario']}[/bold], seed {info['seed']}, "
-        f"dt {info['dt']} s, actuation {info['actuation']}, obs_noise {info['obs_noise']}, "
+        f"dt {fmt(info['dt'])} s, actuation {info['actuation']}, obs_noise {info['obs_noise']}, "
         f"written by fhnn {info['version']}"
     )
     body = info["body_params"]
@@ -121,10 +133,10 @@ def _splits(info: dict[str, Any]) -> None:
     """The summary's tables of split sizes and coverage."""
     splits = info["splits"]
     sizes = Table(title="splits", title_justify="left")
-    for col in ("split", "trajectories", "samples", "duration \\[s]"):
+    for col in ("split", "trajectories", "samples", "longest track", "duration \\[s]"):
         sizes.add_column(col, justify="right")
     for name, s in splits.items():
-        sizes.add_row(name, str(s["n_traj"]), str(s["n_times"]), fmt(s["duration"]))
+        sizes.add_row(name, str(s["n_traj"]), str(s["samples"]), str(s["n_times"]), fmt(s["duration"]))
     stdout.print(sizes)
     states = "observed states" if info["imported"] else "clean states"  # no truth in measured data
     cover = Table(title=f"coverage of the {states} (min – max)", title_justify="left")

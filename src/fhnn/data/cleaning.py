@@ -57,7 +57,9 @@ def _residual_sigmas(t: np.ndarray, pos: np.ndarray, noise: float) -> np.ndarray
     return np.maximum(*(np.abs(lagrange_residuals(t, pos[:, k])) for k in range(2))) / noise
 
 
-def drop_outliers(pieces: list[Trajectory], noise: float, sigmas: float) -> tuple[list[Trajectory], int, int]:
+def drop_outliers(
+    pieces: list[Trajectory], noise: float, sigmas: float, where: list[tuple[str, float]] | None = None
+) -> tuple[list[Trajectory], int, int]:
     """Drop the glitches of a tracker: samples whose position lies more than ``sigmas`` times the
     noise level ``noise`` [m] from the cubic through their two neighbours on either side
     (:func:`~fhnn.data.derivatives.lagrange_residuals`, in x or in y). A glitch also pulls its
@@ -67,7 +69,8 @@ def drop_outliers(pieces: list[Trajectory], noise: float, sigmas: float) -> tupl
     least sum of squared residuals around it (a sum, not the largest: with two glitches in a run
     the other one's residual would tie every candidate); passes repeat (at most
     :data:`OUTLIER_PASSES`) until no sample is flagged. Returns ``(pieces, samples dropped, pieces
-    with a drop)``; with ``noise`` 0 nothing can be judged and nothing is dropped."""
+    with a drop)``, and each dropped sample's ``(trajectory id, time [s])`` appended to ``where``;
+    with ``noise`` 0 nothing can be judged and nothing is dropped."""
     if not noise > 0:
         return pieces, 0, 0
     out: list[Trajectory] = []
@@ -93,21 +96,23 @@ def drop_outliers(pieces: list[Trajectory], noise: float, sigmas: float) -> tupl
             continue
         dropped += int((~keep).sum())
         touched += 1
+        if where is not None:
+            where.extend((tr.traj_id, float(time)) for time in tr.t[~keep])
         out.append(tr.take(keep))
     return out, dropped, touched
 
 
 def without_outliers(
-    trajectories: list[Trajectory], sigmas: float | None
+    trajectories: list[Trajectory], sigmas: float | None, where: list[tuple[str, float]] | None = None
 ) -> tuple[list[Trajectory], float, int, int]:
     """:func:`drop_outliers` at the noise level the trajectories' own positions show (``sigmas``
     None: none dropped): ``(trajectories, noise level of what is kept [m], samples dropped,
     trajectories with a drop)``. What ``fhnn import`` does to a table and ``fhnn predict`` to a
-    ``--history``."""
+    ``--history``. ``where``: as for :func:`drop_outliers`."""
     noise = noise_level(position_series(trajectories))
     if sigmas is None:
         return trajectories, noise, 0, 0
-    kept, dropped, touched = drop_outliers(trajectories, noise, sigmas)
+    kept, dropped, touched = drop_outliers(trajectories, noise, sigmas, where)
     if dropped:
         noise = noise_level(position_series(kept))
     return kept, noise, dropped, touched

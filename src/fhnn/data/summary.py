@@ -55,7 +55,8 @@ def summarize(dataset: Dataset) -> dict[str, Any]:
         split = dataset[name]
         splits[name] = {
             "n_traj": split.n_traj,
-            "n_times": split.n_times,
+            "n_times": split.n_times,  # the longest trajectory's samples
+            "samples": int(np.sum(split.sample_counts)),
             "duration": split.duration,
             "coverage": coverage(dataset, split),
         }

@@ -77,7 +77,7 @@ def flow_figure(
         speed = np.hypot(learned_u[..., 0], learned_u[..., 1])
         mesh = ax.pcolormesh(xs, ys, speed, cmap="viridis", shading="auto")
         ax.streamplot(xs, ys, learned_u[..., 0], learned_u[..., 1], color="white", linewidth=0.6, density=1.1)
-        fig.colorbar(mesh, ax=ax, label="speed |u_θ| [m/s]")
+        fig.colorbar(mesh, ax=ax, label="learned flow speed |u| [m/s]")
         ax.contour(xs, ys, covered.astype(float), levels=[0.5], colors="red", linewidths=1.2)
         ax.plot([], [], color="red", label="training data region")
         ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
@@ -95,7 +95,7 @@ def flow_figure(
         ax.set_title(f"{label} flow, t = {t:g} s")
     fig.colorbar(mesh, ax=axes[:2], label="speed |u| [m/s] (one scale for both)", shrink=0.9)
     err_mesh = axes[2].pcolormesh(xs, ys, error, cmap="magma", shading="auto")
-    fig.colorbar(err_mesh, ax=axes[2], label="|u_θ − u| [m/s]", shrink=0.9)
+    fig.colorbar(err_mesh, ax=axes[2], label="error |u_learned − u_true| [m/s]", shrink=0.9)
     axes[2].set_title(f"error; relative L2 over the data region {rel:.3%}")
     for ax in axes:
         ax.contour(xs, ys, covered.astype(float), levels=[0.5], colors="red", linewidths=1.2)

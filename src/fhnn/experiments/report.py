@@ -25,7 +25,7 @@ import numpy as np
 from fhnn.data.dataset import read_dataset
 from fhnn.evaluation.metrics import METRICS
 from fhnn.experiments import figures
-from fhnn.experiments.grid import ABLATIONS, HORIZONS, ModelJob, ReproduceConfig
+from fhnn.experiments.grid import ABLATIONS, HORIZONS, JOB_ADAM_STEPS, ModelJob, ReproduceConfig
 from fhnn.experiments.tables import (
     DIVERGENCE_RULE,
     MODEL_NAMES,
@@ -205,7 +205,15 @@ def _intro(config: ReproduceConfig, timings: dict[str, Any]) -> str:
         f"the same training for every gradient-trained model ({_plan_text(config.train)})"
         + f". {timings['jobs']} training jobs, {timings['job_seconds_total'] / 60:.1f} CPU-minutes of jobs; "
         f"this invocation took {timings['wall_seconds_this_run'] / 60:.1f} min (cached jobs are not re-run)."
+        + (SMOKE_TEST if config.train.steps + config.train.lbfgs_steps < JOB_ADAM_STEPS else "")
     )
+
+
+#: What the report says of a reproduction trained too briefly to compare (``fhnn reproduce --quick``).
+SMOKE_TEST = (
+    " **A smoke test**: training this short checks that every table and figure is made; its numbers are "
+    "far from converged and are not the comparison with the paper (run without --quick for that)."
+)
 
 
 def _plan_text(train: TrainConfig) -> str:
