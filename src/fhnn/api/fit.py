@@ -43,11 +43,8 @@ class Fit:
         Raises:
             DataFormatError: not a run, unreadable files, or a data set missing or changed.
         """
-        from fhnn.api.train import stopped_text
-
         folder = Path(folder)
-        folders = member_folders(folder) if is_ensemble(folder) else [folder]
-        runs = [Run.load(f) for f in folders]
+        runs = load_runs(folder)
         notes = []
         first = runs[0]
         if first.state is not None and first.state.stopped is not None:
@@ -134,6 +131,27 @@ class Fit:
         from fhnn.api.inspect import inspect
 
         return inspect(self, **options)
+
+
+def load_runs(folder: str | os.PathLike[str]) -> list[Run]:
+    """The run in ``folder``, or the members of the ensemble there (their data set not read)."""
+    folder = Path(folder)
+    return [Run.load(f) for f in (member_folders(folder) if is_ensemble(folder) else [folder])]
+
+
+def stopped_text(run: Run) -> str:
+    """The line saying that a guard stopped ``run`` early, and which model it kept."""
+    state = run.state
+    assert state is not None
+    best = min(
+        (r for r in state.history if r.get("val_total") == state.best_val),
+        key=lambda r: r["step"],
+        default={"step": "?"},
+    )
+    return (
+        f"{state.stopped}; the result is the best model (validation loss {state.best_val:.3e}, "
+        f"step {best['step']})"
+    )
 
 
 def as_fit(run: Fit | str | os.PathLike[str], data: Dataset | str | os.PathLike[str] | None = None) -> Fit:

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from fhnn.api.fit import Fit
+from fhnn.api.fit import Fit, load_runs
 from fhnn.data.cleaning import OUTLIER_SIGMAS, drop_table_outliers
 from fhnn.data.clock import SECONDS_ONLY, seconds_to_date_times
 from fhnn.data.table import (
@@ -120,7 +120,7 @@ def predict(
         check_output_path(Path(output))
         check_table_name(output)
     fit = run if isinstance(run, Fit) else None
-    runs = fit.runs if fit is not None else _runs(run)
+    runs = fit.runs if fit is not None else load_runs(run)
     models = []
     for r in runs:
         if not isinstance(r.state.best_model, AbstractVectorField):  # type: ignore[union-attr]
@@ -186,14 +186,6 @@ def predict(
     if output is not None:
         write_table(columns, output)
     return Prediction(columns, result, notes, warnings)
-
-
-def _runs(folder: str | os.PathLike[str]) -> list[Any]:
-    """The runs of the run or ensemble in ``folder`` (the data set is not needed)."""
-    from fhnn.training.ensemble import is_ensemble, member_folders
-    from fhnn.training.run import Run
-
-    return [Run.load(f) for f in (member_folders(folder) if is_ensemble(folder) else [Path(folder)])]
 
 
 def _notes(unforced: bool, glitches: int, sigmas: float | None, fitted: bool, result: Forecast) -> list[str]:

@@ -12,7 +12,7 @@ from typing import Any
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Column
 
-from fhnn.api.fit import Fit
+from fhnn.api.fit import Fit, stopped_text
 from fhnn.api.report import Reporter, fault_point, reporter
 from fhnn.config import flatten, get_setting
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
@@ -97,13 +97,14 @@ def train(
     out = Path(out)
     check_new_folder(out)
     dataset = data if isinstance(data, Dataset) else read_dataset(data)
-    fresh = not (out / "run.json").exists() and not is_ensemble(out)
+    stored_seeds = read_seeds(out) if is_ensemble(out) else None
+    fresh = not (out / "run.json").exists() and stored_seeds is None
     res = resolve(dataset, given, plan=plan, fresh=fresh, source=source_name(data))
     settings_ = dict(res.settings)
-    if seeds is None and is_ensemble(out):
-        seeds = len(read_seeds(out))
-        settings_.setdefault("train.seed", read_seeds(out)[0])
-    if seeds == 1 and is_ensemble(out):
+    if seeds is None and stored_seeds is not None:
+        seeds = len(stored_seeds)
+        settings_.setdefault("train.seed", stored_seeds[0])
+    if seeds == 1 and stored_seeds is not None:
         raise ConfigError(f"{out} holds an ensemble; resume it without --seeds, or train into a new folder")
     path = _data_file(data, out, fresh)
     if seeds is None or seeds == 1:
@@ -317,19 +318,4 @@ def warmup_text(record: dict[str, Any], run: Run) -> str:
         f"warm-up discarded at iteration {record['iteration']} of {train.warmup_steps} (validation loss "
         f"{val:.2e} > {accept:g}: the linear far field does not explain this flow); Adam started from "
         "the initial model"
-    )
-
-
-def stopped_text(run: Run) -> str:
-    """The line saying that a guard stopped ``run`` early, and which model it kept."""
-    state = run.state
-    assert state is not None
-    best = min(
-        (r for r in state.history if r.get("val_total") == state.best_val),
-        key=lambda r: r["step"],
-        default={"step": "?"},
-    )
-    return (
-        f"{state.stopped}; the result is the best model (validation loss {state.best_val:.3e}, "
-        f"step {best['step']})"
     )
