@@ -75,7 +75,9 @@ def test_finished_runs_say_so_and_extend_needs_more_steps(
     trained: Path, data_file: Path, capsys: pytest.CaptureFixture
 ) -> None:
     code, out, _ = cli(["train", str(data_file), "-o", str(trained), "-q"], capsys)
-    assert code == 0 and "has finished training (6 steps); nothing to do" in out and "--extend" in out
+    assert (
+        code == 0 and "has finished training (Adam 6 of 6 steps); nothing to do" in out and "--extend" in out
+    )
     code, _, err = cli(["train", str(data_file), "-o", str(trained), "--extend", "-q"], capsys)
     assert code == 2 and "--extend continues" in err and "give --steps larger than its 6" in err
     code, _, err = cli(["train", str(data_file), "-o", str(trained), "--steps", "8", "-q"], capsys)

@@ -18,6 +18,7 @@ from fhnn.config import flatten, get_setting
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.errors import ConfigError, Interrupted
 from fhnn.files import check_new_folder
+from fhnn.training.budget import Budget
 from fhnn.training.ensemble import is_ensemble, read_seeds, start_ensemble, train_members
 from fhnn.training.run import Run, RunConfig
 from fhnn.training.settings import Resolution, check_settings, given_settings, resolve, source_name
@@ -77,6 +78,7 @@ def train(
         DataFormatError: unreadable or untrainable data.
         Interrupted: Ctrl-C; the runs keep their last checkpoints.
     """
+    began = time.monotonic()  # the time budget counts the whole command
     say = reporter(progress)
     if seeds is not None and seeds < 1:
         raise ConfigError(f"--seeds must be >= 1, got {seeds}")
@@ -109,7 +111,8 @@ def train(
     path = _data_file(data, out, fresh)
     if seeds is None or seeds == 1:
         run = open_run(out, settings_, res.config, dataset, path, extend=extend, say=say)
-        train_runs([run], [""], dataset, say=say, notes=res.notes)
+        budget = Budget.of(run.train_config, start=began)
+        train_runs([run], [""], dataset, say=say, notes=res.notes, budget=budget)
         return Fit([run], dataset, out)
     if "train.bootstrap" not in given:  # an ensemble's spread should hold the sampling noise
         settings_["train.bootstrap"] = True
@@ -121,7 +124,8 @@ def train(
         member, member_config = res.member(seed_k)
         runs.append(open_run(folder, member, member_config, dataset, path, extend=extend, say=say))
     labels = [f"seed {s} ({k + 1}/{seeds}) " for k, s in enumerate(members)]
-    train_runs(runs, labels, dataset, say=say, notes=res.notes)
+    budget = Budget.of(runs[0].train_config, start=began)
+    train_runs(runs, labels, dataset, say=say, notes=res.notes, budget=budget)
     say.result(f"ensemble of {seeds} runs (seeds {members[0]}–{members[-1]}) in {out}")
     return Fit(runs, dataset, out)
 
@@ -161,6 +165,9 @@ def open_run(
     kind = str(settings.get("kind", "fhnn"))
     if (out / "run.json").exists():
         run = Run.load(out, expect_model=kind if "kind" in settings else None)
+        # the time budget is the command's, not the run's: this command's, or none
+        run.config = run.config.with_settings({"train.max_time": settings.get("train.max_time", 0.0)})
+        continued = run.continue_cut()
         wanted = run.config.with_settings(settings)
         if extend:
             run.extend(wanted)
@@ -174,16 +181,20 @@ def open_run(
                 f"{out} holds a run started with other settings ({detail}); rerun without them to "
                 "resume it, or train into a new folder"
             )
+        state = run.state
+        assert state is not None
         if run.finished:
-            if run.state is not None and run.state.stopped is not None:
+            if state.stopped is not None:
                 say.warn(stopped_text(run))
             say.result(
-                f"{out} has finished training ({run.state.step} steps); nothing to do. To train further, "  # type: ignore[union-attr]
-                "give a larger --steps with --extend.",
+                f"{out} has finished training ({run.ran()}); nothing "
+                "to do. To train further, give a larger --steps with --extend.",
                 always=True,
             )
+        elif continued is not None:
+            say.warn(f"resuming {out}: {continued}")
         else:
-            say.warn(f"resuming {out} from step {run.state.step}")  # type: ignore[union-attr]
+            say.warn(f"resuming {out} from step {state.step}")
         return run
     if extend:
         raise ConfigError(f"--extend continues an existing run, and {out} holds none")
@@ -209,11 +220,18 @@ def windowless_note(run: Run, dataset: Dataset) -> list[str]:
 
 
 def train_runs(
-    runs: list[Run], labels: list[str], dataset: Dataset, *, say: Reporter, notes: list[str]
+    runs: list[Run],
+    labels: list[str],
+    dataset: Dataset,
+    *,
+    say: Reporter,
+    notes: list[str],
+    budget: Budget | None = None,
 ) -> None:
     """Train the unfinished ``runs`` (an ensemble's Adam phases as one program), a progress bar
     each (``labels[j]`` before its phase), then say how each ended; ``notes`` are said once the
-    data are checked against the runs.
+    data are checked against the runs. ``budget``: the command's time budget, shared by the runs
+    (default: ``train.max_time`` from now).
 
     Raises:
         ConfigError: data too short for the training windows.
@@ -246,9 +264,10 @@ def train_runs(
             on_steps.append(_step_callback(bar, task))
         try:
             if len(todo) == 1:
-                todo[0][0].train(dataset, callback=callbacks[0], on_step=on_steps[0])
+                todo[0][0].train(dataset, callback=callbacks[0], on_step=on_steps[0], budget=budget)
             else:
-                train_members([run for run, _ in todo], dataset, callbacks=callbacks, on_steps=on_steps)
+                members = [run for run, _ in todo]
+                train_members(members, dataset, callbacks=callbacks, on_steps=on_steps, budget=budget)
         except KeyboardInterrupt:
             bar.stop()
             kept = "; ".join(
@@ -271,9 +290,10 @@ def _say_ended(run: Run, say: Reporter) -> None:
     decided = [r for r in state.history if "warmup" in r]
     if decided:
         say.note(warmup_text(decided[-1], run))
+    more = "" if run.finished else " (cut by the time budget: run the same command again to continue)"
     say.result(
-        f"trained {run.kind} for {state.step} steps; best validation loss {state.best_val:.3e}; saved to "
-        f"{run.folder}"
+        f"trained {run.kind}: {run.ran()}{more}; best validation loss "
+        f"{state.best_val:.3e}; saved to {run.folder}"
     )
 
 

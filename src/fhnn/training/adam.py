@@ -274,6 +274,7 @@ def _adam_phase(
     active = list(range(len(trainers)))
     saved = tick = time.monotonic()
     per_step = 0.0  # measured seconds per step (per chunk), for the chunks' length
+    measured: set[str] = set()
     i = states[0].step
     while i < until:
         regularize = cfg.regularizes(i)
@@ -281,8 +282,7 @@ def _adam_phase(
         end = adam_chunk_end(cfg, i, until, per_step, left)
         name = f"adam-{regularize}" if alone else f"adam-{regularize}-{len(active)}"
         lead = trainers[active[0]]
-        first, before = name not in lead._programs, lead.started
-        models, opts, last = lead._uncounted_first(
+        models, opts, last = lead._program(
             name,
             adam_chunk,
             models,
@@ -298,13 +298,9 @@ def _adam_phase(
             not alone,
         )
         now = time.monotonic()
-        for j in active:  # compilation is nobody's time; the rest is shared (alone: all its own)
-            trainer = trainers[j]
-            if first and trainer is not lead:
-                trainer.started += lead.started - before
-            trainer.started += 0.0 if first else (now - tick) * (1.0 - 1.0 / len(active))
-        if not first:
+        if name in measured:
             per_step = (now - tick) / (end - i)
+        measured.add(name)  # a program's first chunk includes its compilation
         tick = now
         i = done = end
         skipped = skipped + last["skipped"]

@@ -37,10 +37,8 @@ from __future__ import annotations
 
 import json
 import os
-import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -48,6 +46,7 @@ from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import write_atomic
 from fhnn.models.registry import MODELS
+from fhnn.training.budget import Budget
 from fhnn.training.run import Run
 from fhnn.training.together import can_run_together, run_together
 from fhnn.training.trainer import TrainState
@@ -139,33 +138,29 @@ def train_members(
     callbacks: list[Callback | None] | None = None,
     on_steps: list[Callable[[str, int], None] | None] | None = None,
     together: bool = True,
+    budget: Budget | None = None,
 ) -> None:
     """Train (or resume) the members ``runs`` of an ensemble on ``dataset`` to the end of every
     phase, checkpointing each as :meth:`Run.train` does (``callbacks[j]`` at member ``j``'s
     records, ``on_steps[j]`` at its steps). With ``together`` (and members that allow it:
     :func:`~fhnn.training.together.can_run_together`) their Adam phases run as one program;
-    otherwise, or for a fitted kind, each member trains on its own, one after another. Under a
-    time budget (``train.max_time``) each member is charged only its own phases and its share of
-    the joint one."""
+    otherwise, or for a fitted kind, each member trains on its own, one after another. The members
+    share one time budget (``budget``, default ``train.max_time`` from now): a phase they run
+    one after another gives each an equal share of what is left to its deadline
+    (:meth:`~fhnn.training.budget.Budget.turn`)."""
     n = len(runs)
     callbacks = callbacks or [None] * n
     on_steps = on_steps or [None] * n
     if not together or any(MODELS[r.kind].fit is not None for r in runs):
-        for run, callback, on_step in zip(runs, callbacks, on_steps, strict=True):
-            run.train(dataset, callback=callback, on_step=on_step)
+        budget = budget if budget is not None else Budget.of(runs[0].train_config)
+        for j, (run, callback, on_step) in enumerate(zip(runs, callbacks, on_steps, strict=True)):
+            run.train(dataset, callback=callback, on_step=on_step, budget=budget.share(n - j))
         return
-    trainers = [run.trainer(dataset, on_step) for run, on_step in zip(runs, on_steps, strict=True)]
-
-    def alone(j: int, phase: Callable[[], Any]) -> None:
-        """Run member ``j``'s ``phase``; the others' budget clocks stop meanwhile."""
-        t0 = time.monotonic()
-        phase()
-        for k, trainer in enumerate(trainers):
-            if k != j:
-                trainer.started += time.monotonic() - t0
-
+    budget = budget if budget is not None else Budget.of(runs[0].train_config)
+    trainers = [run.trainer(dataset, on_step, budget) for run, on_step in zip(runs, on_steps, strict=True)]
     for j, run in enumerate(runs):
-        alone(j, lambda run=run, j=j: run.begin(trainers[j], callback=callbacks[j]))
+        with budget.turn("warmup", n - j):
+            run.begin(trainers[j], callback=callbacks[j])
     states: list[TrainState] = [run.state for run in runs]  # type: ignore[misc]
     waiting = [j for j, run in enumerate(runs) if states[j].step < run.train_config.steps]
     if can_run_together([trainers[j] for j in waiting], [states[j] for j in waiting]):
@@ -177,10 +172,12 @@ def train_members(
             checkpoint_seconds=min(runs[j].checkpoint_seconds for j in waiting),
         )
     else:
-        for j in waiting:
-            alone(j, lambda j=j: runs[j].adam(trainers[j], callback=callbacks[j]))
+        for k, j in enumerate(waiting):
+            with budget.turn("adam", len(waiting) - k):
+                runs[j].adam(trainers[j], callback=callbacks[j])
     for j, run in enumerate(runs):
-        alone(j, lambda run=run, j=j: run.finish(trainers[j], callback=callbacks[j]))
+        with budget.turn("lbfgs", n - j):
+            run.finish(trainers[j], callback=callbacks[j])
 
 
 def interval(values: np.ndarray, axis: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -41,6 +41,7 @@ from fhnn.files import check_new_folder, commit_files, recover_files
 from fhnn.models.base import AbstractModel, AbstractVectorField
 from fhnn.models.registry import MODELS
 from fhnn.runtime import __version__
+from fhnn.training.budget import Budget, pending_cut, ran_text, rewind_cut
 from fhnn.training.plans import PLANS
 from fhnn.training.trainer import TrainConfig, Trainer, TrainState
 
@@ -193,7 +194,21 @@ class Run:
         if MODELS[self.kind].fit is not None:
             return self.state.step >= 1
         cfg = self.train_config
-        return self.state.step >= cfg.steps + cfg.lbfgs_steps + cfg.track_steps
+        done = self.state.step >= cfg.steps + cfg.lbfgs_steps + cfg.track_steps
+        return done and pending_cut(self.state) is None
+
+    def ran(self) -> str:
+        """What the training ran so far (:func:`~fhnn.training.budget.ran_text`), or "one fit"."""
+        if MODELS[self.kind].fit is not None:
+            return "one fit"
+        return ran_text(self.state.history if self.state else [], self.train_config)
+
+    def continue_cut(self) -> str | None:
+        """Where a time budget cut a phase of this run: set the run back there, so that training
+        continues (:func:`~fhnn.training.budget.rewind_cut`); returns what continues, or ``None``."""
+        if self.state is None or MODELS[self.kind].fit is not None:
+            return None
+        return rewind_cut(self.state, self.train_config)
 
     def extend(self, config: RunConfig) -> None:
         """Continue this run under ``config``, which may differ from the stored one only by more
@@ -314,12 +329,23 @@ class Run:
         """The data set the run was trained on (see :meth:`data_file`)."""
         return read_dataset(self.data_file())
 
-    def trainer(self, dataset: Dataset, on_step: Callable[[str, int], None] | None = None) -> Trainer:
+    def trainer(
+        self,
+        dataset: Dataset,
+        on_step: Callable[[str, int], None] | None = None,
+        budget: Budget | None = None,
+    ) -> Trainer:
         """The :class:`~fhnn.training.trainer.Trainer` of this run on ``dataset`` (its training
         windows sized for the model); ``on_step(phase, step)`` is told of every quasi-Newton step and
-        every chunk of Adam steps."""
+        every chunk of Adam steps; ``budget``: the command's time budget (default:
+        ``train.max_time`` from now)."""
         return Trainer(
-            self.train_config, dataset.train, dataset.val, window=self.check_windows(dataset), on_step=on_step
+            self.train_config,
+            dataset.train,
+            dataset.val,
+            window=self.check_windows(dataset),
+            on_step=on_step,
+            budget=budget,
         )
 
     def check_windows(self, dataset: Dataset) -> int:
@@ -363,11 +389,13 @@ class Run:
         callback: Callable[[TrainState, dict[str, float]], None] | None = None,
         save: bool = True,
         on_step: Callable[[str, int], None] | None = None,
+        budget: Budget | None = None,
     ) -> TrainState:
         """Train (or fit) up to ``until`` Adam steps (default: to the end of every phase),
         checkpointing at every validation when ``save``; ``callback(state, record)`` at each,
-        ``on_step(phase, step)`` between them (:class:`~fhnn.training.trainer.Trainer`)."""
-        trainer = self.trainer(dataset, on_step)
+        ``on_step(phase, step)`` between them (:class:`~fhnn.training.trainer.Trainer`), under
+        ``budget`` (default: ``train.max_time`` from now)."""
+        trainer = self.trainer(dataset, on_step, budget)
         if MODELS[self.kind].fit is not None:  # a one-shot fit (a regression), not gradient descent
             return self._fit(trainer, dataset, save)
         self.begin(trainer, callback=callback, save=save)
@@ -434,13 +462,13 @@ class Run:
         assert self.state is not None
         if save:
             self.save()
-        polish = self.train_config.lbfgs_steps > 0 and self.state.step == self.train_config.steps
+        cfg = self.train_config
+        polish = cfg.lbfgs_steps > 0 and cfg.steps <= self.state.step < cfg.steps + cfg.lbfgs_steps
         if polish and (until is None or until > self.train_config.steps):
             # the Adam-end checkpoint above is what an interrupted polish restarts from
             self.state = trainer.polish(self.state, callback=callback)
             if save:
                 self.save(polished=True)
-        cfg = self.train_config
         polished = self.state.step >= cfg.steps + cfg.lbfgs_steps
         if cfg.track_steps > 0 and polished and not self.finished:
             if until is None or until > cfg.steps + cfg.lbfgs_steps:

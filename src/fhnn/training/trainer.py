@@ -57,6 +57,7 @@ from fhnn.data.windows import LossScales, Windows
 from fhnn.executables import StoredProgram
 from fhnn.models.base import AbstractModel
 from fhnn.training.adam import ADAM_CHUNK, AdamSettings, _adam_phase, adam_chunk, adam_step
+from fhnn.training.budget import Budget
 from fhnn.training.losses import _validation_terms, data_loss, loss_terms
 from fhnn.training.quasi_newton import quasi_newton_objective, quasi_newton_step, strong_types
 from fhnn.training.sampling import bootstrap_weights, draw_batch
@@ -97,11 +98,6 @@ __all__ = [  # the names other modules import from here (their definitions moved
 #: (``solid_body_vortex``: 230× from iteration 40 to 400; ``steady_vortex`` stays at 0.13 from
 #: iteration 40 on, ``time_varying_vortex`` at 0.17).
 WARMUP_GIVE_UP = 1e4
-
-#: Share of ``max_time`` that the phases before an L-BFGS polish may use (the polish gets the rest:
-#: an iteration on the whole model costs ~25 Adam steps, and it is what brings the loss below
-#: Adam's noise floor).
-PRE_POLISH_SHARE = 0.5
 
 
 @dataclass
@@ -150,21 +146,18 @@ class Trainer:
         *,
         window: int = 2,
         on_step: Callable[[str, int], None] | None = None,
+        budget: Budget | None = None,
     ) -> None:
         """``on_step(phase, step)`` (optional) is told of progress between records, after every
         quasi-Newton step and every chunk of Adam steps (:func:`adam_chunk_end`; a cheap call: a
         progress bar throttles its own redrawing); phase is "warmup", "adam" or "lbfgs", step
-        counts as in the history."""
+        counts as in the history. ``budget``: the command's time budget, shared by the members
+        of an ensemble (default: ``config.max_time`` from now)."""
         self.config = config
         self._on_step = on_step
-        #: The start of ``config.max_time``: when this trainer was made, moved later by each
-        #: compiled program's first call (:meth:`_uncounted_first`; see :meth:`deadline`).
-        self.started = time.monotonic()
-        #: Seconds of the budget a discarded warm-up used: sunk, the later phases share the rest
-        #: from the moment of the discard (see :meth:`deadline`).
-        self._sunk = 0.0
-        #: The compiled programs by name (executables kept on disk: :mod:`fhnn.executables`);
-        #: the first call of each (its compilation or loading) is left out of the budget.
+        #: The time budget (:class:`~fhnn.training.budget.Budget`; see :meth:`deadline`).
+        self.budget = budget if budget is not None else Budget.of(config)
+        #: The compiled programs by name (executables kept on disk: :mod:`fhnn.executables`).
         self._programs: dict[str, StoredProgram] = {}
         #: The training and validation splits (the whole-track fit reads their tracks).
         self.train_split, self.val_split = train, val
@@ -195,59 +188,29 @@ class Trainer:
         return out if key is None else {**out, "key": key}
 
     def deadline(self, phase: str) -> float:
-        """When ``phase`` ("warmup", "adam", "lbfgs" or "tracks") must end under ``config.max_time``
-        (``time.monotonic()`` seconds; infinite without a budget). The budget counts from the
-        trainer's creation (a resumed run starts a new one) and leaves out the first call of each
-        compiled program (:meth:`_uncounted_first`: its compilation). When a
-        polish or a whole-track fit follows, the phases before it end at :data:`PRE_POLISH_SHARE`
-        of the budget, so the polish (and the whole-track fit) — from the best model so far — gets
-        the rest; they end at the budget. The
-        time of a discarded warm-up is sunk: Adam and the polish then split what is left in the
-        same shares (without it, a warm-up that took half the budget before being discarded left
-        Adam one step: ``steady_vortex`` at ``max_time=60``)."""
-        cfg = self.config
-        if cfg.max_time <= 0:
-            return np.inf
-        final = cfg.lbfgs_steps > 0 or cfg.track_steps > 0  # a polish or whole-track fit follows
-        share = PRE_POLISH_SHARE if phase not in ("lbfgs", "tracks") and final else 1.0
-        return self.started + self._sunk + share * (cfg.max_time - self._sunk)
+        """When ``phase`` ("warmup", "adam", "lbfgs" or "tracks") must end under the time budget
+        (``time.monotonic()`` seconds; infinite without one): :meth:`Budget.deadline`."""
+        return self.budget.deadline(phase)
 
-    def _uncounted_first(
+    def _program(
         self, name: str, program: Callable[..., Any], *args: Any, donate: tuple[int, ...] = ()
     ) -> Any:
-        """``program(*args)``; its first time under ``name`` in this trainer — a compiled program's first
-        call: tracing and compilation, or loading from the persistent cache — is left out of the
-        budget, so what a job trains for does not depend on the state of the cache (a trial at
-        ``max_time=60`` on ``steady_vortex``: 261 Adam steps on a cold cache, all 1,500 warm).
-        The arrays of the arguments at positions ``donate`` are given to the program's outputs
-        (:class:`~fhnn.executables.StoredProgram`): the caller must not use them again."""
+        """``program(*args)``, compiled once per ``name`` in this trainer (and kept on disk:
+        :class:`~fhnn.executables.StoredProgram`). The arrays of the arguments at positions
+        ``donate`` are given to the program's outputs: the caller must not use them again."""
         stored = self._programs.get(name)
-        if stored is not None:
-            return stored(*args)
-        stored = self._programs[name] = StoredProgram(program, donate=donate)
-        t0 = time.monotonic()
-        out = jax.block_until_ready(stored(*args))
-        self.started += time.monotonic() - t0
-        return out
+        if stored is None:
+            stored = self._programs[name] = StoredProgram(program, donate=donate)
+        return jax.block_until_ready(stored(*args))  # timed work is done work
 
     def _over_budget(self, phase: str, step: int, of: int, what: str) -> str | None:
         """The ``stopped`` text when ``phase`` has run past its :meth:`deadline`, else ``None``."""
         if time.monotonic() < self.deadline(phase):
             return None
-        cfg = self.config
-        spent = time.monotonic() - self.started
         unit = "step" if phase == "adam" else "iteration"
-        share = (
-            ""
-            if phase in ("lbfgs", "tracks") or (cfg.lbfgs_steps == 0 and cfg.track_steps == 0)
-            else f", {PRE_POLISH_SHARE:.0%} of it before the polish"
-            if self._sunk == 0
-            else f", {PRE_POLISH_SHARE:.0%} of the {cfg.max_time - self._sunk:.0f} s a discarded warm-up "
-            "left before the polish"
-        )
         return (
             f"{what} stopped at {unit} {step} of {of}: the time budget "
-            f"(train.max_time={cfg.max_time:g} s{share}) ran out after {spent:.0f} s"
+            f"({self.budget.describe(phase)}) ran out after {self.budget.spent():.0f} s"
         )
 
     @property
@@ -278,7 +241,7 @@ class Trainer:
         if accept > 0 and not last["val_total"] <= accept:  # a NaN loss is discarded too
             last["warmup"] = "discarded"
             state.model, state.best_model, state.best_val = initial, initial, np.inf
-            self._sunk = min(time.monotonic() - self.started, self.config.max_time)
+            self.budget.sink()
         else:
             state.best_model, state.best_val = state.model, last["val_total"]
             if accept > 0:
@@ -290,8 +253,12 @@ class Trainer:
     def polish(
         self, state: TrainState, callback: Callable[[TrainState, dict[str, float]], None] | None = None
     ) -> TrainState:
-        """Quasi-Newton on all parameters from the best model so far."""
-        return self._quasi_newton(state, state.best_model, self.config.lbfgs_steps, "lbfgs", callback)
+        """Quasi-Newton on all parameters from the best model so far, for the iterations left
+        (all of them from the end of Adam; fewer where a time budget cut the polish before:
+        :func:`~fhnn.training.budget.rewind_cut`)."""
+        done = max(0, state.step - self.config.steps)
+        left = self.config.lbfgs_steps - done
+        return self._quasi_newton(state, state.best_model, left, "lbfgs", callback, offset=done)
 
     def track_fit(
         self, state: TrainState, callback: Callable[[TrainState, dict[str, float]], None] | None = None
@@ -361,6 +328,7 @@ class Trainer:
                 state.best_model, state.best_val = result.model, val["total"]
             late = None if k + 1 == left else self._over_budget("tracks", k + 1, left, "the whole-track fit")
             if late is not None:
+                record["budget"] = True
                 state.stopped = f"{state.stopped}; {late}" if state.stopped else late
                 state.step = self.total_steps
             if callback is not None:
@@ -394,6 +362,7 @@ class Trainer:
         callback: Callable[[TrainState, dict[str, float]], None] | None,
         restore: Callable[[AbstractModel], AbstractModel] = lambda m: m,
         give_up: Callable[[dict[str, Any]], bool] | None = None,
+        offset: int = 0,
     ) -> TrainState:
         """``iterations`` full-batch quasi-Newton steps on the parameters of ``start``, on a seeded
         subset of the training pairs; validates and records ``restore(iterate)`` five times, the
@@ -421,8 +390,9 @@ class Trainer:
         )
         every = max(1, min(cfg.val_every, iterations // 5 or 1))
         what = "the warm-up" if phase == "warmup" else "the L-BFGS polish"
+        of = offset + iterations
         for k in range(iterations):
-            flat, opt_state, value = self._uncounted_first(
+            flat, opt_state, value = self._program(
                 phase,
                 quasi_newton_step,
                 flat,
@@ -434,18 +404,18 @@ class Trainer:
                 qn_cfg,
                 donate=(0, 1),
             )
-            done = k + 1
+            done = offset + k + 1
             self._tell(phase, 0 if phase == "warmup" else cfg.steps + done)
-            late = None if done == iterations else self._over_budget(phase, done, iterations, what)
-            if done % every == 0 or done == iterations or late is not None:
+            late = None if done == of else self._over_budget(phase, done, of, what)
+            if (k + 1) % every == 0 or done == of or late is not None:
                 record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
                 record.update({"phase": phase, "iteration": done})
                 self._record(state, restore(eqx.combine(unravel(flat), static)), record, callback, late=late)
                 if give_up is not None and give_up(record):
                     break
             if late is not None:
-                if phase == "lbfgs":
-                    state.step = self.total_steps  # the run is over: a resume does not polish again
+                if phase == "lbfgs":  # the whole-track fit waits for the polish to be continued
+                    state.step = self.total_steps
                 break
         return state
 
@@ -468,6 +438,8 @@ class Trainer:
         way. Returns whether this record ended the phase."""
         val = self.validate(model)
         record.update({f"val_{k}": v for k, v in val.items()})
+        if late is not None:  # the next command continues from here (budget.rewind_cut)
+            record["budget"] = True
         state.history.append(record)
         if val["total"] < state.best_val:
             state.best_val, state.best_model = val["total"], model
@@ -504,7 +476,7 @@ class Trainer:
         """Loss terms on the validation windows, and ``total``: their data sum weighted as the
         training loss weighs them (:func:`data_loss`), so a term trained with weight 0 — the
         derivative loss against estimated derivatives — does not choose the best model."""
-        raw = self._uncounted_first("validate", _validation_terms, model, self._val, self.scales)
+        raw = self._program("validate", _validation_terms, model, self._val, self.scales)
         terms = {k: float(v) for k, v in raw.items()}
         terms["total"] = float(data_loss(raw, self.config))
         return terms
