@@ -213,3 +213,29 @@ def test_compilation_counts_and_members_one_after_another_share_what_is_left():
         "train.max_time=90 s, this member's share of it, 50% of it before the polish"
     )
     assert Budget(0.0, final_phases=True).deadline("adam") == np.inf
+
+
+def test_a_whole_track_fit_that_would_not_end_in_time_is_not_begun_and_continues_later(tmp_path):
+    """With the budget spent before the whole-track fit, no iteration starts (one would end past
+    the budget): a record at iteration 0 marks the cut, the summary says 0 iterations ran, and the
+    next command continues the fit from its first iteration."""
+    ds = small_dataset("steady_vortex", n_traj=4, duration=1.0)
+    config = paper_train(steps=2, val_every=2, batch_size=16, track_steps=2)
+    run = Run.create(tmp_path / "r", ds, RunConfig(model=paper_fhnn(width=8), train=config))
+    trainer = run.trainer(ds, budget=Budget(0.0, final_phases=True))
+    run.begin(trainer, save=False)
+    run.adam(trainer, save=False)
+    run.finish(run.trainer(ds, budget=Budget(1e-9, final_phases=True)), save=False)
+    last = run.state.history[-1]
+    assert (last["phase"], last["iteration"], last["budget"], last["step"]) == ("tracks", 0, True, 2)
+    assert "before iteration 1 of 2: the time budget" in run.state.stopped and not run.finished
+    assert run.ran() == "Adam 2 of 2 steps, whole-track fit 0 of 2 iterations"
+    assert (
+        run.continue_cut()
+        == "continues the whole-track fit from iteration 0 of 2, where the time budget cut it"
+    )
+    state = run.train(ds, save=False, budget=Budget(0.0, final_phases=True))
+    assert [r["iteration"] for r in state.history if r.get("phase") == "tracks"][1:] == [
+        1,
+        2,
+    ] and run.finished

@@ -203,9 +203,10 @@ class Trainer:
             stored = self._programs[name] = StoredProgram(program, donate=donate)
         return jax.block_until_ready(stored(*args))  # timed work is done work
 
-    def _over_budget(self, phase: str, step: int, of: int, what: str) -> str | None:
-        """The ``stopped`` text when ``phase`` has run past its :meth:`deadline`, else ``None``."""
-        if time.monotonic() < self.deadline(phase):
+    def _over_budget(self, phase: str, step: int, of: int, what: str, ahead: float = 0.0) -> str | None:
+        """The ``stopped`` text when ``phase`` has run past its :meth:`deadline`, or would with
+        ``ahead`` seconds more (the next step's expected cost), else ``None``."""
+        if time.monotonic() + ahead < self.deadline(phase):
             return None
         unit = "step" if phase == "adam" else "iteration"
         return (
@@ -287,17 +288,25 @@ class Trainer:
         if left <= 0 or free is None:
             state.step = self.total_steps
             return state
+        done = self.total_steps - left
+        if time.monotonic() >= self.deadline("tracks"):
+            return self._tracks_not_begun(state, done, left)
         split, parent = track_pieces(self.train_split, cfg.track_samples, cfg.seed + 5)
         n_tracks = self.train_split.n_traj
         weights = None
         if cfg.bootstrap:  # each piece weighted as its track
             weights = bootstrap_weights(np.arange(n_tracks), n_tracks, cfg.seed)[parent]
+        began = time.monotonic()
         fit = TrackFit(start, free, split, weights)
+        # an iteration costs about what setting the fit up did (its programs, the start states)
+        took = time.monotonic() - began
         held_out = TrackFit(start, free, track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0])
         forecasts = ForecastScore(start, free, self.val_split, cfg.track_samples, cfg.seed + 7)
         guard = forecasts(fit.theta)
-        done = self.total_steps - left
+        if time.monotonic() + took >= self.deadline("tracks"):
+            return self._tracks_not_begun(state, done, left)
         for k in range(left):
+            began = time.monotonic()
             result = fit.step()
             done += 1
             self._tell("tracks", done)
@@ -326,7 +335,12 @@ class Trainer:
             # no forecasts (every validation track shorter than a history): the objective alone
             if np.isnan(guard) or record["val_forecast"] <= guard:
                 state.best_model, state.best_val = result.model, val["total"]
-            late = None if k + 1 == left else self._over_budget("tracks", k + 1, left, "the whole-track fit")
+            took = time.monotonic() - began  # the next iteration's cost, as this one's
+            late = (
+                None
+                if k + 1 == left
+                else self._over_budget("tracks", k + 1, left, "the whole-track fit", took)
+            )
             if late is not None:
                 record["budget"] = True
                 state.stopped = f"{state.stopped}; {late}" if state.stopped else late
@@ -335,6 +349,20 @@ class Trainer:
                 callback(state, record)
             if late is not None:
                 break
+        return state
+
+    def _tracks_not_begun(self, state: TrainState, done: int, left: int) -> TrainState:
+        """The whole-track fit cut by the budget before its first iteration (none would end in
+        time): a record of the best model, marked for the next command to continue from."""
+        record: dict[str, Any] = {"step": done, "phase": "tracks", "iteration": 0, "budget": True}
+        record.update({f"val_{name}": v for name, v in self.validate(state.best_model).items()})
+        state.history.append(record)
+        late = (
+            f"the whole-track fit stopped before iteration 1 of {left}: the time budget "
+            f"({self.budget.describe('tracks')}) would run out during it, after {self.budget.spent():.0f} s"
+        )
+        state.stopped = f"{state.stopped}; {late}" if state.stopped else late
+        state.step = self.total_steps
         return state
 
     def quasi_newton_windows(self) -> Windows:
@@ -392,6 +420,7 @@ class Trainer:
         what = "the warm-up" if phase == "warmup" else "the L-BFGS polish"
         of = offset + iterations
         for k in range(iterations):
+            began = time.monotonic()
             flat, opt_state, value = self._program(
                 phase,
                 quasi_newton_step,
@@ -406,7 +435,8 @@ class Trainer:
             )
             done = offset + k + 1
             self._tell(phase, 0 if phase == "warmup" else cfg.steps + done)
-            late = None if done == of else self._over_budget(phase, done, of, what)
+            took = time.monotonic() - began if k else 0.0  # the first includes its compilation
+            late = None if done == of else self._over_budget(phase, done, of, what, took)
             if (k + 1) % every == 0 or done == of or late is not None:
                 record = {"step": 0 if phase == "warmup" else cfg.steps + done, "train_loss": float(value)}
                 record.update({"phase": phase, "iteration": done})
