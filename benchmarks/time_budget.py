@@ -83,7 +83,7 @@ def main() -> None:
     for name, budget, extra in cases:
         folder = args.out / f"run_{name}"
         subprocess.run(["rm", "-rf", str(folder)], check=True)
-        row = timed("train", str(data), "-o", str(folder), *extra, "--max-time", f"{budget:g}", "-q")
+        row = timed("train", str(data), "-o", str(folder), *extra, "--max-time", f"{budget:g}")
         row["budget"] = budget
         row["bound"] = budget * 1.1 + 15.0
         row["within"] = row["seconds"] <= row["bound"]
