@@ -48,10 +48,11 @@ def train(
         float | None,
         typer.Option(
             "--max-time",
-            help="Wall-clock budget in seconds for this command's training of a run (train.max_time; "
-            "compilation included, a resumed run starts a new budget): the phases before an L-BFGS "
-            "polish or whole-track fit end at half of it, those at all of it, each at its next step, "
-            "and the run says what was cut [default: none]",
+            help="Wall-clock budget in seconds for the whole command (train.max_time; compilation "
+            "and every member of an ensemble included): the phases before an L-BFGS polish or "
+            "whole-track fit end at half of it, those at all of it, no step starting that would end "
+            "past it; the run says what ran, and the same command again continues it with a new "
+            "budget [default: none]",
         ),
     ] = None,
     n_seeds: Annotated[

@@ -100,9 +100,10 @@ class TrainConfig(Config):
             that cannot explain the flow drives the coefficients to a corner Adam does not leave:
             on ``steady_vortex`` the warm-up sent c_l to 0). The decision is logged in the
             warm-up's last history record (``"warmup": "kept"`` or ``"discarded"``).
-        max_time: wall-clock budget in seconds for the training in one process, compilation
-            left out (0: none); see
-            :meth:`Trainer.deadline`. A phase cut short by it says so in ``stopped``.
+        max_time: wall-clock budget [s] of the command that trains, compilation and every
+            member of an ensemble included (0: none): :class:`~fhnn.training.budget.Budget`. A
+            phase cut short by it says so in ``stopped``, and the next command continues it; it
+            is the command's, so a resumed run may be given another.
         bootstrap: train on a Bayesian bootstrap of the training trajectories drawn from the
             seed (each trajectory's windows weighted by its own random weight, see
             :func:`bootstrap_weights`; the validation split is left whole). ``fhnn train
