@@ -80,7 +80,7 @@ def test_the_defaults_are_what_fhnn_train_stores_on_noise_free_data(
     """``fhnn train DATA -o RUN`` with no options stores ``FHNNConfig()`` and ``TrainConfig()``
     (the run is saved untrained: what is stored is decided before training)."""
 
-    def save_untrained(runs, labels, dataset, *, say, notes):
+    def save_untrained(runs, labels, dataset, *, say, notes, budget=None):
         for run in runs:
             run.state = run.trainer(dataset).init(run.skeleton())
             run.save()

@@ -35,7 +35,7 @@ def test_max_time_bounds_an_ensemble_and_the_same_command_continues_it(tmp_path:
     again), within a new budget."""
     data = tmp_path / "d.h5"
     write_dataset(small_dataset("steady_vortex", n_traj=12, duration=3.0), data)
-    budget = 25.0
+    budget = 40.0  # well above what compiling the programs takes on a busy 2-core machine
     command = ["train", str(data), "-o", str(tmp_path / "ens"), "--seeds", "2", "--steps", "200000"]
     command += ["--set", "model.width=16", "--max-time", f"{budget:g}"]
     done, seconds = fhnn_process(*command)
@@ -51,9 +51,9 @@ def test_max_time_bounds_an_ensemble_and_the_same_command_continues_it(tmp_path:
         cut = [r for r in history if r.get("budget") is True and "phase" not in r]
         assert [r["step"] for r in cut] == [adam]  # Adam's own cut, where it stopped
 
-    done, seconds = fhnn_process(*command[:-1], "10")
+    done, seconds = fhnn_process(*command[:-1], "20")
     assert done.returncode == 0, done.stderr[-2000:]
-    assert seconds <= 10 * (1 + SLACK_SHARE) + SLACK_SECONDS, seconds
+    assert seconds <= 20 * (1 + SLACK_SHARE) + SLACK_SECONDS, seconds
     said_err = " ".join(done.stderr.split())
     for k, adam in enumerate(first):
         assert f"seed-{k}: continues the Adam from step {adam:,} of 200,000" in said_err, said_err

@@ -46,6 +46,7 @@ def train(
     max_time: float | None = None,
     extend: bool = False,
     progress: Reporter | bool = True,
+    started: float | None = None,
 ) -> Fit:
     """Train a model on a data set into the run folder ``out``, or resume the run there.
 
@@ -69,6 +70,7 @@ def train(
         extend: continue a run for more Adam steps (``steps`` larger than its own).
         progress: progress bars and notes on the terminal (``False``: none; or a
             :class:`~fhnn.api.report.Reporter`).
+        started: when the time budget starts (``time.monotonic()``; default: this call).
 
     Returns:
         The trained :class:`~fhnn.api.fit.Fit`.
@@ -78,7 +80,7 @@ def train(
         DataFormatError: unreadable or untrainable data.
         Interrupted: Ctrl-C; the runs keep their last checkpoints.
     """
-    began = time.monotonic()  # the time budget counts the whole command
+    began = time.monotonic() if started is None else started  # the budget counts the whole command
     say = reporter(progress)
     if seeds is not None and seeds < 1:
         raise ConfigError(f"--seeds must be >= 1, got {seeds}")

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from fhnn.api.train import train as train_fit
+from fhnn.cli import STARTED
 from fhnn.cli.options import ConfigFileOption, QuietOption, SetOption, app
 from fhnn.models.registry import MODELS
 from fhnn.training.plans import DEFAULT_PLAN, ESTIMATED_VELOCITY_PLAN, PLANS
@@ -97,4 +98,5 @@ def train(
         max_time=max_time,
         extend=extend,
         progress=not quiet,
+        started=STARTED,
     )
