@@ -52,9 +52,9 @@ def parse_outliers(text: str) -> float | None:
 
 def _residual_sigmas(t: np.ndarray, pos: np.ndarray, noise: float) -> np.ndarray:
     """``(n − 4,)``: for each interior sample of a track (times ``t`` ``(n,)``, positions
-    ``pos`` ``(n, 2)``), the larger of its x and y residuals from the cubic through its two
-    neighbours either side, in noise levels ``noise`` [m]."""
-    return np.maximum(*(np.abs(lagrange_residuals(t, pos[:, k])) for k in range(2))) / noise
+    ``pos`` ``(n, 2)``), the length of its residual vector from the cubic through its two
+    neighbours either side, in noise levels ``noise`` [m] (a length: the same in turned axes)."""
+    return np.hypot(*(lagrange_residuals(t, pos[:, k]) for k in range(2))) / noise
 
 
 def drop_outliers(
@@ -62,7 +62,7 @@ def drop_outliers(
 ) -> tuple[list[Trajectory], int, int]:
     """Drop the glitches of a tracker: samples whose position lies more than ``sigmas`` times the
     noise level ``noise`` [m] from the cubic through their two neighbours on either side
-    (:func:`~fhnn.data.derivatives.lagrange_residuals`, in x or in y). A glitch also pulls its
+    (:func:`~fhnn.data.derivatives.lagrange_residuals`, the residual vector's length). A glitch also pulls its
     neighbours' residuals (by up to 2/3 of its own), and one among a track's first or last two
     samples shows only in its neighbours', so for each run of flagged samples within 4 of each
     other the sample dropped is the one (of the run and two either side) whose removal leaves the

@@ -211,6 +211,17 @@ class Dataset:
         return self.scenario == IMPORTED
 
     @property
+    def centre(self) -> np.ndarray:
+        """The point [m], shape ``(2,)``, that models measure positions from: the mean of the
+        training positions for imported data (a table's origin is wherever its tracker put it),
+        the coordinate origin for a simulated scenario (its flow and coefficient laws are
+        written about it)."""
+        if not self.imported:
+            return np.zeros(2)
+        split = self.train
+        return np.mean(split.states[split.mask][:, :2], axis=0)
+
+    @property
     def measured(self) -> tuple[str, ...]:
         """The fields measured (the others were estimated); all of :data:`MEASURABLE` for
         simulated data."""

@@ -90,9 +90,29 @@ def robust_std(x: np.ndarray) -> float:
 
 def noise_level(series: list[tuple[np.ndarray, np.ndarray]]) -> float:
     """The observation noise's std [units of the signal] pooled over ``series``: a list of
-    ``(t, z)`` pairs, each with increasing times ``t`` ``(n,)`` [s] and values ``z`` ``(n,)``."""
-    residuals = [lagrange_residuals(t, z) for t, z in series]
-    return robust_std(np.concatenate([np.zeros(0), *residuals]))
+    ``(t, z)`` pairs, each with increasing times ``t`` ``(n,)`` [s] and values ``z`` ``(n,)``.
+    Consecutive series sharing one times array (a trajectory's axes) count as one curve in ``d``
+    dimensions: its residual vectors' squared lengths, whose median is ``σ²`` times the median of
+    χ² with ``d`` degrees of freedom for isotropic noise, give an estimate that does not change
+    when the table is turned; lone series get :func:`robust_std` of their residuals."""
+    from scipy.stats import chi2
+
+    lone, squares = [], {}
+    for t, zs in _curves(series):
+        res = np.stack([lagrange_residuals(t, z) for z in zs], axis=1)  # (n - 4, d)
+        if len(zs) == 1:
+            lone.append(res[:, 0])
+        else:
+            squares.setdefault(len(zs), []).append(np.sum(res**2, axis=1))
+    if not squares:
+        return robust_std(np.concatenate([np.zeros(0), *lone]))
+    if lone:
+        raise ValueError("noise_level: give either curves or lone series, not both")
+    (d, parts), *more = squares.items()
+    if more:
+        raise ValueError("noise_level: every curve must have the same number of axes")
+    pooled = np.concatenate(parts)
+    return float(np.sqrt(np.median(pooled) / chi2.ppf(0.5, d))) if pooled.size else 0.0
 
 
 def _mm(a: jax.Array, b: jax.Array) -> jax.Array:
@@ -263,23 +283,41 @@ def _kalman_fit(
 def spline_derivatives(
     series: list[tuple[np.ndarray, np.ndarray]], noise: float
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """As :func:`kalman_derivatives`, from a quintic FITPACK smoothing spline per series
-    (:class:`scipy.interpolate.UnivariateSpline`, irregular abscissae as they are) held to
-    ``Σ (z_i − s(t_i))² ≤ n σ²``; fewer than 6 samples get a lower degree."""
+    """As :func:`kalman_derivatives`, from a quintic FITPACK smoothing spline (irregular abscissae
+    as they are) held to ``Σ ‖z_i − s(t_i)‖² ≤ d n σ²``; consecutive series that share their
+    times array (a trajectory's x and y, as :func:`~fhnn.data.table.position_series` gives them)
+    are one curve in ``d`` dimensions with common knots (:func:`scipy.interpolate.splprep`), so
+    that the estimate turns with the table; a lone series is
+    :class:`scipy.interpolate.UnivariateSpline`'s. Fewer than 6 samples get a lower degree."""
     return [(x[:, 1], x[:, 2]) for x in _spline_fit(series, noise)]
 
 
+def _curves(series: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, list[np.ndarray]]]:
+    """Consecutive series that share one times array (the same object), as ``(t, [z, …])``."""
+    curves: list[tuple[np.ndarray, list[np.ndarray]]] = []
+    for t, z in series:
+        if curves and curves[-1][0] is t:
+            curves[-1][1].append(z)
+        else:
+            curves.append((t, [z]))
+    return curves
+
+
 def _spline_fit(series: list[tuple[np.ndarray, np.ndarray]], noise: float) -> list[np.ndarray]:
-    """The smoothing spline's ``(value, first, second)`` at each series' times: ``(n_i, 3)`` each
-    (each series' spline is its own)."""
-    from scipy.interpolate import UnivariateSpline  # here: importing it costs 0.7 s
+    """The smoothing spline's ``(value, first, second)`` at each series' times: ``(n_i, 3)`` each."""
+    from scipy.interpolate import UnivariateSpline, splev, splprep  # here: importing costs 0.7 s
 
     out = []
-    for t, z in series:
+    for t, zs in _curves(series):
         degree = min(SPLINE_DEGREE, t.size - 1)
-        spline = UnivariateSpline(t, z, k=degree, s=t.size * noise**2)
-        second = spline.derivative(2)(t) if degree >= 2 else np.zeros_like(t)
-        out.append(np.stack([spline(t), spline.derivative(1)(t), second], axis=1))
+        if len(zs) == 1:
+            spline = UnivariateSpline(t, zs[0], k=degree, s=t.size * noise**2)
+            second = spline.derivative(2)(t) if degree >= 2 else np.zeros_like(t)
+            out.append(np.stack([spline(t), spline.derivative(1)(t), second], axis=1))
+            continue
+        tck, _ = splprep(zs, u=t, k=degree, s=len(zs) * t.size * noise**2)
+        parts = [splev(t, tck, der=d) if d <= degree else [np.zeros_like(t)] * len(zs) for d in range(3)]
+        out += [np.stack([parts[d][j] for d in range(3)], axis=1) for j in range(len(zs))]
     return out
 
 
@@ -317,10 +355,15 @@ def derivative_error(
         return _spline_fit(part, noise)
 
     rng = np.random.default_rng(seed)
-    pick = np.sort(rng.permutation(len(series))[:ERROR_SERIES])
-    chosen = [series[i] for i in pick]
+    curves = _curves(series)  # whole curves: the spline fits a trajectory's axes together
+    pick = np.sort(rng.permutation(len(curves))[: max(1, ERROR_SERIES // len(curves[0][1]))])
+    chosen = [(curves[i][0], z) for i in pick for z in curves[i][1]]
     fitted = fit(chosen)
-    again = [(t, x[:, 0] + rng.normal(0.0, noise, t.size)) for (t, _), x in zip(chosen, fitted, strict=True)]
+    noisy = [x[:, 0] + rng.normal(0.0, noise, x.shape[0]) for x in fitted]
+    again = [
+        (curves[i][0], z)
+        for i, z in zip(np.repeat(pick, [len(curves[i][1]) for i in pick]), noisy, strict=True)
+    ]
     refitted = fit(again)
     diff = np.concatenate([b[:, 1] - a[:, 1] for a, b in zip(fitted, refitted, strict=True)])
     return float(np.sqrt(np.mean(diff**2)))

@@ -33,13 +33,14 @@ def relative_speeds(eom: EquationsOfMotion, states: np.ndarray, ts: np.ndarray) 
 
 
 def coverage(dataset: Dataset, split: Split) -> dict[str, tuple[float, float]]:
-    """Ranges ``(min, max)`` over the real samples of ``split``'s clean states of ``r`` [m],
+    """Ranges ``(min, max)`` over the real samples of ``split``'s clean states of ``r`` [m] (from
+    :attr:`~fhnn.data.dataset.Dataset.centre`),
     ``|v|`` [m/s], ``|F_ext|`` [N] and, where the data set knows its flow (simulated data),
     ``σ = ‖v − u‖ + ε`` [m/s]."""
     s = split.states_clean[split.mask]
     as_range = lambda a: (float(np.min(a)), float(np.max(a)))  # noqa: E731
     out = {
-        "r": as_range(np.hypot(s[..., 0], s[..., 1])),
+        "r": as_range(np.hypot(*(s[..., :2] - dataset.centre).T)),
         "speed": as_range(np.hypot(s[..., 2], s[..., 3])),
         "force": as_range(np.hypot(split.forces[split.mask][:, 0], split.forces[split.mask][:, 1])),
     }

@@ -30,8 +30,8 @@ from fhnn.physics.flows import AbstractFlow, velocity_field
 
 
 def visited_r_sigma(eom: EquationsOfMotion, dataset: Dataset, *, max_points: int = 20000) -> np.ndarray:
-    """``(r, σ)`` pairs [m, m/s] at the clean training states (subsampled), shape ``(P, 2)``, σ in
-    the flow of ``eom`` (the truth's, or a model's where the truth is unknown)."""
+    """``(r, σ)`` pairs [m, m/s] at the clean training states (subsampled), shape ``(P, 2)``, r
+    and σ as ``eom`` sees them (the truth's, or a model's where the truth is unknown)."""
     split = dataset.train
     states = split.states_clean[split.mask]
     ts = split.times[split.mask]
@@ -39,7 +39,7 @@ def visited_r_sigma(eom: EquationsOfMotion, dataset: Dataset, *, max_points: int
         idx = np.random.default_rng(0).choice(states.shape[0], max_points, replace=False)
         states, ts = states[idx], ts[idx]
     sigma = relative_speeds(eom, states, ts)
-    return np.column_stack([np.hypot(states[:, 0], states[:, 1]), sigma])
+    return np.column_stack([np.asarray(eom.radius(states[:, :2])), sigma])
 
 
 @eqx.filter_jit

@@ -107,6 +107,13 @@ def flow_figure(
     return _save(fig, path, formats)
 
 
+def learned_origin(eom: EquationsOfMotion | None) -> np.ndarray | None:
+    """The point [m] a model's ``r`` is measured from, where it is not the coordinate origin."""
+    if eom is None or eom.origin is None or not np.any(np.asarray(eom.origin)):
+        return None
+    return np.asarray(eom.origin)
+
+
 def coefficient_figure(
     learned: AbstractCoefficients,
     truth: AbstractCoefficients | None,
@@ -145,7 +152,9 @@ def coefficient_figure(
         ax.set_title(name)
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8)
-    fig.colorbar(scatter, ax=axes, label="r [m] (learned points)", shrink=0.8)
+    centre = learned_origin(flow_of)
+    origin = "" if centre is None else f" from ({centre[0]:.3g}, {centre[1]:.3g}) m"
+    fig.colorbar(scatter, ax=axes, label=f"r [m]{origin} (learned points)", shrink=0.8)
     return _save(fig, path, formats)
 
 

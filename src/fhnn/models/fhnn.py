@@ -155,6 +155,11 @@ class FHNNConfig(Config):
             alike. 1 (default) settles the drag split on noise-free observations; data with
             observation noise set 0 (:func:`~fhnn.training.plans.data_settings`); 2 settles it on
             ``steady_vortex`` but not on every scenario (module docstring).
+        centre: where the flow net's inputs and the coefficients' ``r`` are measured from:
+            "data" (the data set's :attr:`~fhnn.data.dataset.Dataset.centre`: the mean training
+            position of imported data, the coordinate origin of a simulated scenario), which
+            makes a model of imported data independent of where the table's origin lies; or
+            "origin" (the table's coordinate origin).
     """
 
     config_name = "fhnn"
@@ -175,6 +180,7 @@ class FHNNConfig(Config):
     coefficients_in_r: bool = True
     time_modes: int = 16
     slow_weight: float = 1.0
+    centre: Literal["data", "origin"] = "data"
 
     def validate(self) -> None:
         check_positive(self, "width", "depth")
@@ -209,7 +215,8 @@ class StreamNet(AbstractFlow):
     ``τ = t / time_scale``, ``K = time_modes`` (``time_modes = 0``: the paper's ``MLP(ξ, τ)``).
 
     ``quadratic = (Q_xx, Q_xy, Q_yy)`` and ``linear = b`` are the far-field linear flow (None: the
-    paper's plain MLP). The scales are data-derived constants held as 0-d arrays behind
+    paper's plain MLP). With ``origin = x₀`` [m], ``ξ = (x − x₀) / length_scale``.
+    The scales are data-derived constants held as 0-d arrays behind
     ``stop_gradient`` (never trained): arrays, not static fields, so that models of the same
     architecture on different data sets share one compiled program.
     """
@@ -222,16 +229,23 @@ class StreamNet(AbstractFlow):
     quadratic: Array | None = None
     linear: Array | None = None
     time_modes: int = eqx.field(static=True, default=0)
+    origin: Array | None = None  # (2,) [m]
 
     @property
     def time_dependent(self) -> bool:
         return self.uses_time
 
+    def _scaled(self, xy: Array) -> Array:
+        xy = jnp.asarray(xy)
+        if self.origin is not None:
+            xy = xy - _const(self.origin)
+        return xy / _const(self.length_scale)
+
     def net_stream(self, xy: Array, t: Array) -> Array:
         """The MLP part of ψ_θ [m²/s] (what the smoothness penalty acts on); 0 without the MLP."""
         if self.mlp is None:
             return jnp.zeros((), jnp.result_type(float))
-        inp = jnp.asarray(xy) / _const(self.length_scale)
+        inp = self._scaled(xy)
         if not self.uses_time:
             return _const(self.psi_scale) * self.mlp(inp)[0]
         tau = jnp.asarray(t, inp.dtype) / _const(self.time_scale)
@@ -242,7 +256,7 @@ class StreamNet(AbstractFlow):
     def stream(self, xy: Array, t: Array) -> Array:
         psi = self.net_stream(xy, t)
         if self.quadratic is not None and self.linear is not None:
-            xi = jnp.asarray(xy) / _const(self.length_scale)
+            xi = self._scaled(xy)
             q = self.quadratic
             far = 0.5 * (q[0] * xi[0] ** 2 + 2.0 * q[1] * xi[0] * xi[1] + q[2] * xi[1] ** 2)
             psi = psi + _const(self.psi_scale) * (far + jnp.dot(self.linear, xi))
@@ -439,8 +453,10 @@ def fhnn_arguments(dataset: Dataset) -> dict[str, Any]:
     train = dataset.train
     body = dataset.constants()
     states = train.states[train.mask]  # (samples, 4): real samples only
-    pos = states[:, :2]
+    centre = dataset.centre
+    pos = states[:, :2] - centre
     radius = np.hypot(pos[:, 0], pos[:, 1])
+    raw = np.hypot(states[:, 0], states[:, 1])  # about the coordinate origin
     return {
         "mass": body["M"],
         "rho": body["rho"],
@@ -452,6 +468,11 @@ def fhnn_arguments(dataset: Dataset) -> dict[str, Any]:
         "speed_scale": float(np.sqrt(np.mean(states[:, 2:] ** 2))),
         "time_scale": float(np.max(train.end_times)),
         "r_range": [float(radius.min()), float(radius.max())],
+        "centre": [float(c) for c in centre],
+        "about_origin": {
+            "length_scale": float(np.sqrt(np.mean(raw**2))),
+            "r_range": [float(raw.min()), float(raw.max())],
+        },
     }
 
 
@@ -469,6 +490,8 @@ def build_fhnn(
     time_scale: float,
     key: Array,
     r_range: tuple[float, float] | None = None,
+    centre: tuple[float, float] | None = None,
+    about_origin: dict[str, Any] | None = None,
 ) -> FHNN:
     """An FHNN with fresh weights drawn from ``key``.
 
@@ -482,9 +505,17 @@ def build_fhnn(
         time_scale: typical duration [s] (input scaling of t).
         r_range: (min, max) radius of the training positions [m]; used by ``r_extrapolation="hold"``
             where the coefficients are functions of r (``coefficients_in_r``).
+        centre: the point [m] that ``r`` and the flow net's inputs are measured from with
+            ``config.centre = "data"`` (None: the coordinate origin); ``length_scale`` and
+            ``r_range`` are measured from it too.
+        about_origin: ``length_scale`` and ``r_range`` measured from the coordinate origin,
+            used in their place with ``config.centre = "origin"``.
         key: PRNG key.
     """
     k_flow, k_coef = jax.random.split(key)
+    origin = _array(centre) if centre is not None and config.centre == "data" else None
+    if config.centre == "origin" and about_origin is not None:
+        length_scale, r_range = about_origin["length_scale"], about_origin["r_range"]
     act = _activation(config.effective_activation)
     depth = config.effective_depth
     if config.time_dependent is not None:
@@ -509,6 +540,7 @@ def build_fhnn(
             quadratic=jnp.zeros(3) if config.far_field == "linear" else None,
             linear=jnp.zeros(2) if config.far_field == "linear" else None,
             time_modes=modes,
+            origin=origin,
         )
     mask = [1.0, 1.0, 1.0, 1.0]
     if config.ablation == "no_added_mass":
@@ -548,5 +580,6 @@ def build_fhnn(
         area=_array(float(area)),
         volume=_array(float(volume)),
         fluid_inertia=fluid_inertia,
+        origin=origin,
     )
     return FHNN(eom=eom, slow_weight=float(config.slow_weight))

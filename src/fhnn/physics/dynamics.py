@@ -1,7 +1,8 @@
 """Equations of motion of a rigid body translating in a 2-D flow (SPEC §1).
 
 State ``s = (x, y, vx, vy)`` [m, m, m/s, m/s]. With ``v_rel = v − u(x, t)``, ``σ = ‖v_rel‖ + ε``
-and coefficients ``(m_ax, m_ay, c_q, c_l) = g(r, σ)``, ``r = ‖x‖``:
+and coefficients ``(m_ax, m_ay, c_q, c_l) = g(r, σ)``, ``r = ‖x − x₀‖`` (``x₀ = origin``, zero
+unless given):
 
     ``F_h = −(½ ρ A c_q σ + c_l) v_rel``
     ``F_in,i = (ρV + m_a,i) (Du/Dt)_i``      (Morison fluid inertia, only if enabled)
@@ -39,6 +40,8 @@ class EquationsOfMotion(eqx.Module):
         volume: displaced volume V [m³] (Morison term only).
         fluid_inertia: include the Morison force ``(ρV + m_a,i)(Du/Dt)_i``.
         eps: ε in ``σ = ‖v_rel‖ + ε`` [m/s].
+        origin: the point ``x₀`` [m], shape ``(2,)``, that ``r`` is measured from (None: the
+            coordinate origin).
     """
 
     flow: AbstractFlow
@@ -49,6 +52,7 @@ class EquationsOfMotion(eqx.Module):
     volume: float | Array = 0.0
     fluid_inertia: bool = eqx.field(static=True, default=False)
     eps: float = SIGMA_EPS
+    origin: Array | None = None
 
     @classmethod
     def of(cls, flow: AbstractFlow, body: Body) -> EquationsOfMotion:
@@ -63,6 +67,13 @@ class EquationsOfMotion(eqx.Module):
             fluid_inertia=body.fluid_inertia,
         )
 
+    def radius(self, positions: Array) -> Array:
+        """``r = ‖x − x₀‖`` [m] of positions ``(..., 2)`` [m]: what the coefficients see."""
+        pos = jnp.asarray(positions)
+        if self.origin is not None:
+            pos = pos - self.origin
+        return jnp.hypot(pos[..., 0], pos[..., 1])
+
     def relative_speed(self, state: Array, t: Array) -> Array:
         """``σ = ‖v − u(x, t)‖ + ε`` [m/s] for one state of shape ``(4,)``."""
         return safe_norm(state[2:] - self.flow.velocity(state[:2], t)) + self.eps
@@ -76,7 +87,7 @@ class EquationsOfMotion(eqx.Module):
         u = self.flow.velocity(pos, t)
         v_rel = vel - u
         sigma = safe_norm(v_rel) + self.eps
-        r = safe_norm(pos)
+        r = safe_norm(pos if self.origin is None else pos - jax.lax.stop_gradient(self.origin))
         coeff = self.coefficients(r, sigma)
         added_mass, c_q, c_l = coeff[:2], coeff[2], coeff[3]
         total = force - (0.5 * rho * area * c_q * sigma + c_l) * v_rel
