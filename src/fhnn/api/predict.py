@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from fhnn.api.fit import Fit, load_runs
+from fhnn.api.fit import Fit, as_fit, load_runs
 from fhnn.data.cleaning import OUTLIER_SIGMAS, drop_table_outliers
 from fhnn.data.clock import SECONDS_ONLY, seconds_to_date_times
 from fhnn.data.table import (
@@ -24,7 +24,7 @@ from fhnn.data.table import (
 )
 from fhnn.errors import ConfigError
 from fhnn.evaluation import predict as prediction
-from fhnn.evaluation.predict import FIT_WINDOW, SAMPLES, Forecast
+from fhnn.evaluation.predict import FIT_WINDOW, SAMPLES, BandCheck, Forecast, band_scale, band_tracks, widened
 from fhnn.files import check_output_path
 from fhnn.models.base import AbstractVectorField
 from fhnn.training.ensemble import INTERVAL
@@ -77,6 +77,7 @@ def predict(
     output: str | os.PathLike[str] | None = None,
     columns: Mapping[str, str] | str | None = None,
     time_unit: str = "s",
+    check: bool = True,
 ) -> Prediction:
     """Forecast with a trained model from a given state or from the end of observed tracks.
 
@@ -103,10 +104,12 @@ def predict(
             :func:`fhnn.import_table` (``{"traj_id": "track", ...}`` or ``"traj_id=track,..."``).
         time_unit: the unit of the history's and forcing table's numeric times (``"ms"``, …),
             read as seconds; ``t0``, ``duration``, ``dt`` and the forecast's ``t`` are seconds.
+        check: check the band on the validation tracks (:func:`check_band`, kept in the run's
+            folder) and widen it where it holds fewer observations than it claims.
 
     Returns:
         The :class:`Prediction`; with a band (an ensemble, or a history) ``x, y, …`` are the
-        median and ``x_lo, x_hi, …`` the 5th and 95th percentiles.
+        median and ``x_lo, x_hi, …`` the 5th and 95th percentiles, widened as the check says.
 
     Raises:
         ConfigError: neither or both of ``initial`` and ``history``, bad values, or a model that
@@ -174,6 +177,8 @@ def predict(
     ]
     banded = len(forecasts) > 1 or forecasts[0].samples is not None
     result = Forecast.of_ensemble(forecasts, INTERVAL) if banded else forecasts[0]
+    if banded and check:
+        result = _checked(result, fit if fit is not None else as_fit(run), samples, notes)
     notes += _notes(forces is None, glitches, outliers, tracks is not None, result)
     warnings = []
     failed = [i for i, ok in zip(result.ids, result.ok, strict=True) if not ok]
@@ -186,6 +191,16 @@ def predict(
     if output is not None:
         write_table(columns, output)
     return Prediction(columns, result, notes, warnings)
+
+
+def _checked(result: Forecast, fit: Fit, samples: int, notes: list[str]) -> Forecast:
+    """``result``'s band widened as :func:`check_band` says, with a note of what it found."""
+    checked = check_band(fit, samples=samples)
+    if checked is None:
+        notes.append("note: the band is unchecked: fewer than half the validation tracks are 2 s long")
+        return result
+    notes.append(f"note: {checked.text()} ({BAND_FILE} in the run's folder)")
+    return widened(result, checked.scale)
 
 
 def _notes(unforced: bool, glitches: int, sigmas: float | None, fitted: bool, result: Forecast) -> list[str]:
@@ -203,3 +218,67 @@ def _notes(unforced: bool, glitches: int, sigmas: float | None, fitted: bool, re
             f"{float(np.median(result.fit_rms)):.3g} m (about the noise when the model explains them)"
         )
     return notes
+
+
+#: The file in a run's (or ensemble's) folder that keeps :func:`check_band`'s result.
+BAND_FILE = "band_check.json"
+#: Seconds of each validation track that :func:`check_band` fits, and at most forecasts.
+BAND_HISTORY, BAND_HORIZON = FIT_WINDOW, 5.0
+
+
+def check_band(fit: Fit, *, samples: int = SAMPLES, refresh: bool = False) -> BandCheck | None:
+    """How often the forecast band (of an ensemble's members and each one's start-state samples,
+    as :func:`predict` makes it) holds the observed positions of the validation tracks: each is
+    fitted on its first second and forecast up to 5 s (at most the median track's length less
+    that second; shorter tracks sit out; the
+    band's percentiles :data:`~fhnn.training.ensemble.INTERVAL`), under the data set's forces;
+    the observations' noise (the data set's ``obs_noise``) widens the band in quadrature.
+
+    The result is kept in the fit's folder (:data:`BAND_FILE`) for the weights it was made with.
+
+    Returns:
+        The :class:`~fhnn.evaluation.predict.BandCheck`, or ``None`` where fewer than half the
+        validation tracks are 2 s long.
+    """
+    import hashlib
+    import json
+
+    weights = [r.folder / "best.eqx" for r in fit.runs]
+    stamp = hashlib.sha256(b"".join(w.read_bytes() for w in weights if w.exists())).hexdigest()
+    path = fit.folder / BAND_FILE
+    if path.exists() and not refresh:
+        kept = json.loads(path.read_text())
+        if kept.get("weights") == stamp and kept.get("samples") == samples:
+            return BandCheck(**kept["check"])
+    data = fit.dataset
+    split = data.val
+    ids = data.extra["import"]["traj_ids"]["val"] if data.imported else [str(i) for i in range(split.n_traj)]
+    times = np.broadcast_to(split.times, split.mask.shape)
+    lengths = [float(np.ptp(times[i][split.mask[i]])) for i in range(split.n_traj)]
+    typical = float(np.median(lengths)) if lengths else 0.0  # at least half the tracks take part
+    horizon = min(BAND_HORIZON, typical - BAND_HISTORY)
+    if horizon < 1.0:
+        return None
+    table, rows, later = band_tracks(split, ids, BAND_HISTORY, horizon)
+    dt = float(np.median(np.concatenate([np.diff(tr.t) for tr in table.trajectories])))
+    forecasts = [
+        prediction.predict_tracks(
+            model,
+            duration=horizon,
+            dt=dt,
+            history=table,
+            forcing_table=rows,
+            fit_window=BAND_HISTORY,
+            samples=samples,
+        )
+        for model in fit.models
+    ]
+    level = (INTERVAL[1] - INTERVAL[0]) / 100.0
+    coverage, scale, points = band_scale(
+        Forecast.of_ensemble(forecasts, INTERVAL), later, data.obs_noise, level
+    )
+    check = BandCheck(level, coverage, scale, len(later), points, BAND_HISTORY, horizon)
+    path.write_text(
+        json.dumps({"weights": stamp, "samples": samples, "check": check.to_dict()}, indent=2) + "\n"
+    )
+    return check

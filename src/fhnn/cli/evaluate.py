@@ -146,7 +146,8 @@ def predict(
     traj_id, t, x, y, vx, vy; with a band — from an ensemble (fhnn train --seeds N), from
     --history, or both — then x_lo, x_hi, y_lo, … (5th and 95th percentiles over the members'
     forecasts and those from start states drawn from each fit's uncertainty; x, y, … are the
-    members' median). A history's start state is the one the model explains best (a least squares
+    members' median), widened where a check on the validation tracks (kept in the run's folder as
+    band_check.json) finds that it holds fewer observations than 90 %. A history's start state is the one the model explains best (a least squares
     fit of its trajectory to the last observed positions), not a smoother's end point. Times are on
     the clock of the table the run's data were imported from — its seconds, or date-times where it
     gave date-times — for --t0, the history and the forcing alike; the forecast's t is on that

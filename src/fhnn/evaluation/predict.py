@@ -14,13 +14,14 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fhnn.data.table import PAD_STEP, Table
+from fhnn.data.table import PAD_STEP, Table, Trajectory
 from fhnn.errors import ConfigError
 from fhnn.executables import StoredProgram
 from fhnn.models.base import ROLLOUT_TOL, AbstractVectorField
@@ -466,3 +467,93 @@ def predict_tracks(
     if draws:
         drawn = np.where(fine[n:, None, None], out[n:], np.nan).reshape(draws, n, *out.shape[1:])
     return Forecast(ids=ids, t=times, states=states, ok=ok, fit_rms=fit_rms, samples=drawn)
+
+
+@dataclasses.dataclass(frozen=True)
+class BandCheck:
+    """How often a forecast band held held-out observations (:func:`check_band`).
+
+    Attributes:
+        level: the band's nominal coverage (0.9 for a 5th–95th percentile band).
+        coverage: the share of (position, axis) pairs whose observation lay inside the band,
+            widened in quadrature by the observation noise, over ``horizon`` s after each track's
+            first ``history`` s.
+        scale: the factor on the band's half-widths (about the median) at which the share
+            reaches ``level`` (1 where it already does: a band is never narrowed).
+        tracks, points: the tracks and observed positions checked.
+        history, horizon: seconds fitted, seconds forecast [s].
+    """
+
+    level: float
+    coverage: float
+    scale: float
+    tracks: int
+    points: int
+    history: float
+    horizon: float
+
+    def to_dict(self) -> dict[str, float]:
+        return dataclasses.asdict(self)
+
+    def text(self) -> str:
+        """One line: what the check found and what was done."""
+        found = (
+            f"on {self.tracks} validation track{'' if self.tracks == 1 else 's'} the {self.level:.0%} band "
+            f"held {self.coverage:.0%} of "
+            f"the observed positions over {self.horizon:g} s after a {self.history:g} s history"
+        )
+        if self.scale > 1.0:
+            return f"{found}; widened ×{self.scale:.2g} to hold {self.level:.0%}"
+        return found
+
+
+def band_tracks(split: Any, ids: list[str], history: float, horizon: float) -> tuple[Table, dict, list]:
+    """The tracks of ``split`` (ids ``ids``) long enough for a check: the first ``history`` s of
+    each as a :class:`~fhnn.data.table.Table`, its forces over the whole track as a forcing table,
+    and each track's observed ``(t, positions)`` after the history up to ``horizon`` s."""
+    trajectories, forcing_rows, later = [], {}, []
+    for i, traj in enumerate(ids):
+        m = split.mask[i]
+        t = np.broadcast_to(split.times, split.mask.shape)[i][m]
+        pos, force = split.states[i][m][:, :2], split.forces[i][m]
+        if t[-1] - t[0] < history + horizon:
+            continue
+        early = t <= t[0] + history
+        trajectories.append(Trajectory(traj, t[early], pos[early], None, force[early]))
+        forcing_rows[traj] = (t, force)
+        after = (t > t[0] + history) & (t <= t[0] + history + horizon)
+        later.append((t[after], pos[after]))
+    table = Table(trajectories, sum(tr.t.size for tr in trajectories), 0)
+    return table, forcing_rows, later
+
+
+def band_scale(band: Forecast, later: list, noise: float, level: float) -> tuple[float, float, int]:
+    """``(coverage, scale, points)`` of ``band`` (a :meth:`Forecast.of_ensemble`) against the
+    observations ``later`` (``(t, positions)`` per track, as :func:`band_tracks` gives them) with
+    position noise of std ``noise`` [m] (see :class:`BandCheck`)."""
+    from scipy.stats import norm
+
+    z = norm.ppf(0.5 + level / 2)
+    needed = []
+    for i, (t, pos) in enumerate(later):
+        for axis in range(2):
+            mid = np.interp(t, band.t[i], band.states[i, :, axis])
+            lo = np.interp(t, band.t[i], band.band[0, i, :, axis])
+            hi = np.interp(t, band.t[i], band.band[1, i, :, axis])
+            d = pos[:, axis] - mid
+            half = np.maximum(np.where(d >= 0, hi - mid, mid - lo), 1e-300)
+            # |d| ≤ sqrt((k·half)² + (zσ)²) ⇔ k ≥ sqrt(max(d² − (zσ)², 0)) / half
+            needed.append(np.sqrt(np.maximum(d**2 - (z * noise) ** 2, 0.0)) / half)
+    k = np.concatenate(needed) if needed else np.zeros(0)
+    if k.size == 0:
+        raise ConfigError("no validation track is long enough to check the band")
+    k = np.where(np.isfinite(k), k, np.inf)
+    return float(np.mean(k <= 1.0)), float(max(1.0, np.quantile(k, level))), int(k.size // 2)
+
+
+def widened(band: Forecast, scale: float) -> Forecast:
+    """``band`` with its half-widths about the median multiplied by ``scale``."""
+    if band.band is None or scale == 1.0:
+        return band
+    mid = band.states[None]
+    return dataclasses.replace(band, band=mid + scale * (band.band - mid))
