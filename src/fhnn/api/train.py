@@ -65,8 +65,11 @@ def train(
             its own Bayesian bootstrap of the training trajectories.
         settings: settings by dotted name, e.g. ``{"train.steps": 2000}``.
         config_file: a TOML or JSON settings file.
-        model, ablation, steps, seed, max_time: ``kind``, ``model.ablation``, ``train.steps``,
-            ``train.seed`` and ``train.max_time`` [s].
+        model: the model kind (``kind``): one of :data:`fhnn.MODELS`.
+        ablation: ``model.ablation``.
+        steps: ``train.steps``, the Adam steps.
+        seed: ``train.seed``.
+        max_time: ``train.max_time`` [s]: the whole call's time budget (0: none).
         extend: continue a run for more Adam steps (``steps`` larger than its own).
         progress: progress bars and notes on the terminal (``False``: none; or a
             :class:`~fhnn.api.report.Reporter`).

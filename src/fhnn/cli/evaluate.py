@@ -147,10 +147,11 @@ def predict(
     --history, or both — then x_lo, x_hi, y_lo, … (5th and 95th percentiles over the members'
     forecasts and those from start states drawn from each fit's uncertainty; x, y, … are the
     members' median), widened where a check on the validation tracks (kept in the run's folder as
-    band_check.json) finds that it holds fewer observations than 90 %. A history's start state is the one the model explains best (a least squares
-    fit of its trajectory to the last observed positions), not a smoother's end point. Times are on
-    the clock of the table the run's data were imported from — its seconds, or date-times where it
-    gave date-times — for --t0, the history and the forcing alike; the forecast's t is on that
+    band_check.json) finds that it holds fewer observations than 90 %. A history's start state is
+    the one the model explains best (a least squares fit of its trajectory to the last observed
+    positions), not a smoother's end point. Times are on the clock of the table the run's data were
+    imported from — its seconds, or date-times where it gave date-times — for --t0, the history and
+    the forcing alike; the forecast's t is on that
     clock too, as date-times where the history gave date-times."""
     if (initial is None) == (history is None):
         raise ConfigError("give --initial x,y,vx,vy or --history TABLE (one of them)")
