@@ -106,6 +106,15 @@ def test_inspect_gives_the_members_median_and_intervals(ensemble, capsys):
     assert code == 0
     report = json.loads(out)
     assert report["members"] == 3 and report["forced"]
+    # each member's flow summarised (these short runs' flows are far from the vortex: the
+    # numbers are tested on exact flows in test_flow_summary.py); the text gives the interval
+    assert len(report["flow_summary"]) == 3
+    for summary in report["flow_summary"]:
+        assert summary["vortex"] == (summary["explained"] >= 0.9) and summary["explained"] <= 1.0
+        assert summary["speed_range"][0] <= summary["speed_range"][1]
+    code, text, _ = run(["inspect", str(ens)], capsys)
+    (line,) = [x for x in text.splitlines() if x.startswith("flow: ")]
+    assert re.search(r"(circulation|ω =) \S+ \S+ \[\S+, \S+\]", line), line
     for name in ("m_ax", "m_ay", "c_q", "c_l", "drag", "c_l/(M+m_ax)", "drag/(M+m_ay)"):
         row = report["coefficients"][name]
         assert row["lo"] <= row["median"] <= row["hi"]

@@ -7,10 +7,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from fhnn.api.fit import Fit, as_fit
 from fhnn.api.report import TableData, fmt
 from fhnn.data.dataset import Dataset
 from fhnn.errors import ConfigError
+from fhnn.evaluation.flow_summary import FlowSummary, summarise_flow
 from fhnn.evaluation.recovery import (
     coefficient_recovery,
     flow_recovery,
@@ -19,7 +22,7 @@ from fhnn.evaluation.recovery import (
 )
 from fhnn.experiments.exports import ensemble_intervals, write_coefficients_csv, write_flow_netcdf
 from fhnn.experiments.figures import coefficient_figure, flow_figure
-from fhnn.training.ensemble import LEVEL
+from fhnn.training.ensemble import LEVEL, interval
 
 
 @dataclass
@@ -36,6 +39,7 @@ class Inspection:
         members: the number of runs (1 for a single run).
         forced: whether the data carry known forcing (ensembles).
         notes: what the inspection found worth saying (identifiability, a guard's stop).
+        flow_summary: the learned flow in a few numbers (:func:`flow_summary`), per member.
     """
 
     kind: str
@@ -46,20 +50,23 @@ class Inspection:
     members: int = 1
     forced: bool | None = None
     notes: list[str] = field(default_factory=list)
+    flow_summary: list[dict[str, Any]] = field(default_factory=list)
 
     def json(self) -> dict[str, Any]:
         """What ``fhnn inspect --json`` prints."""
         written = [str(f) for f in self.written]
+        summary = {"flow_summary": self.flow_summary}
         if self.kind == "ensemble":
             return {
                 "members": self.members,
                 "coefficients": self.coefficients,
                 "forced": self.forced,
+                **summary,
                 "written": written,
             }
         if self.kind == "recovery":
-            return {"coefficients": self.coefficients, "flow": self.flow, "written": written}
-        return {"coefficients": self.coefficients, "written": written}
+            return {"coefficients": self.coefficients, "flow": self.flow, **summary, "written": written}
+        return {"coefficients": self.coefficients, **summary, "written": written}
 
     def __str__(self) -> str:
         return "\n".join(s if isinstance(s, str) else s.text() for s in self.sections)
@@ -92,10 +99,44 @@ def inspect(
             f"inspect needs an fhnn run; a {fit.runs[0].kind!r} model has no flow or coefficients"
         )
     if fit.is_ensemble:
-        return _ensemble(fit, figures)
-    if fit.dataset.imported:
-        return _learned(fit, figures)
-    return _recovery(fit, figures)
+        found = _ensemble(fit, figures)
+    elif fit.dataset.imported:
+        found = _learned(fit, figures)
+    else:
+        found = _recovery(fit, figures)
+    summaries = [summarise_flow(m.flow, fit.dataset) for m in fit.models]
+    found.flow_summary = [f.to_dict() for f in summaries]
+    found.sections.insert(len(found.sections) - 1, flow_summary(summaries))  # before "written:"
+    return found
+
+
+def flow_summary(summaries: list[FlowSummary]) -> str:
+    """One line on the learned flow of a run, or of an ensemble's members (then each number with
+    its 90 % interval over the members): a vortex's centre, circulation and core radius, or a
+    flow's speed range and vorticity peak."""
+
+    def show(values: list[float], unit: str) -> str:
+        if len(values) == 1:
+            return f"{fmt(values[0])} {unit}"
+        mid, lo, hi = (float(a) for a in interval(np.asarray(values)))
+        return f"{fmt(mid)} {unit} [{fmt(lo)}, {fmt(hi)}]"
+
+    first = summaries[0]
+    share = show([s.explained * 100 for s in summaries], "%")
+    if all(s.vortex for s in summaries):
+        return (
+            f"flow: a vortex centred at x {show([s.centre[0] for s in summaries], 'm')}, "
+            f"y {show([s.centre[1] for s in summaries], 'm')}; circulation "
+            f"{show([s.circulation for s in summaries], 'm²/s')}, core radius "
+            f"{show([s.core_radius for s in summaries], 'm')} (a Lamb–Oseen vortex fitted to the "
+            f"learned velocity explains {share} of its variance over the data's region)"
+        )
+    return (
+        f"flow: not one vortex (the best Lamb–Oseen fit explains {share} of the learned velocity's "
+        f"variance); speeds {fmt(first.speed_range[0])} – {fmt(first.speed_range[1])} m/s over the "
+        f"data's region, |vorticity| greatest at ({fmt(first.vorticity_peak[0])}, "
+        f"{fmt(first.vorticity_peak[1])}) m: ω = {show([s.peak_vorticity for s in summaries], '1/s')}"
+    )
 
 
 def _exports(models: list[Any], dataset: Dataset, folder: Path) -> list[Path]:
