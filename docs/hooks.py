@@ -1,5 +1,7 @@
-"""mkdocs hook: the command reference is generated from the Typer app at build time, never
-written by hand (a page holding ``<!-- cli-reference -->`` gets every command's ``--help``)."""
+"""mkdocs hook: the generated parts of the site, made at build time from the code and the result
+files, never written by hand: the command reference from the Typer app (``<!-- cli-reference -->``),
+the reproduction's cells from ``docs/reproduction/tables.json`` (``<!-- reproduction-cells -->``)
+and the list of benchmark result files with their commits (``<!-- benchmark-results -->``)."""
 
 from __future__ import annotations
 
@@ -24,6 +26,61 @@ def cli_reference() -> str:
 
 
 def on_page_markdown(markdown: str, page, config, files) -> str:
+    """Fill the generated parts of a page."""
+    from pathlib import Path
+
+    root = Path(config["docs_dir"]).parent
     if MARK in markdown:
-        return markdown.replace(MARK, cli_reference())
+        markdown = markdown.replace(MARK, cli_reference())
+    if REPRODUCTION_MARK in markdown:
+        markdown = markdown.replace(REPRODUCTION_MARK, reproduction_cells(root))
+    if RESULTS_MARK in markdown:
+        markdown = markdown.replace(RESULTS_MARK, benchmark_results(root))
     return markdown
+
+
+REPRODUCTION_MARK = "<!-- reproduction-cells -->"
+RESULTS_MARK = "<!-- benchmark-results -->"
+
+
+def _number(value: float | None) -> str:
+    return "—" if value is None else f"{value:.3g}"
+
+
+def reproduction_cells(root) -> str:
+    """The reproduction's RMSE(pos) cells from ``docs/reproduction/tables.json`` beside the
+    paper's: ours (mean ± std over seeds, or the median where a seed diverged), the paper's, and
+    the paper's over ours."""
+    import json
+
+    records = json.loads((root / "docs" / "reproduction" / "tables.json").read_text())
+    lines = [
+        "| table | data | model | horizon [s] | ours [m] | paper [m] | paper / ours |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: |",
+    ]
+    for r in records:
+        if r["metric"] != "rmse_pos":
+            continue
+        if r["statistic"] == "mean":
+            ours = f"{_number(r['mean'])} ± {_number(r['std'])}"
+        elif r["mean"] is None:
+            ours = f"diverged ({r['diverged']}/{r['rollouts']} rollouts)"
+        else:
+            ours = f"median {_number(r['mean'])} ({r['diverged']}/{r['rollouts']} diverged)"
+        ratio = "" if not r.get("paper") or not r["mean"] else f"{r['paper'] / r['mean']:.3g}×"
+        cells = [r["table"], r["data"], r["model"], f"{r['horizon']:g}", ours, _number(r.get("paper")), ratio]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def benchmark_results(root) -> str:
+    """Every ``benchmarks/results/*.json`` with the commit that made it."""
+    import json
+
+    lines = ["| result file | made at commit |", "| --- | --- |"]
+    for path in sorted((root / "benchmarks" / "results").glob("*.json")):
+        commit = json.loads(path.read_text()).get("commit", "not recorded")
+        lines.append(
+            f"| `benchmarks/results/{path.name}` | `{commit[:12]}{'+dirty' if 'dirty' in commit else ''}` |"
+        )
+    return "\n".join(lines)
