@@ -284,6 +284,7 @@ CASES = [
     (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,3"], "--initial expects x,y,vx,vy"),
     (["predict", "{ws}/run", "--duration", "1", "--initial", "1,2,a,b"], "--initial expects x,y,vx,vy"),
     (["predict", "{ws}/run", "--duration", "0", "--initial", "0,1,0,0"], "--duration must be > 0 s"),
+    ([*P, "--forcing-hold", "step"], "--forcing-hold must be one of linear, previous, got 'step'"),
     ([*P, "--dt", "-1"], "--dt must be > 0 s"),
     ([*P, "--outliers", "-3"], "--outliers must be off or a number of noise levels > 0, got '-3'"),
     ([*P, "--dt", "1e-7"], "is 1e+07 output samples per track; at most 1,000,000"),

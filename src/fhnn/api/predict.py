@@ -16,6 +16,7 @@ from fhnn.data.clock import SECONDS_ONLY, seconds_to_date_times
 from fhnn.data.table import (
     Table,
     check_table_name,
+    held,
     parse_columns,
     read_forcing,
     read_table,
@@ -70,6 +71,7 @@ def predict(
     t0: float = 0.0,
     history: Table | Any | None = None,
     forcing: Any | None = None,
+    forcing_hold: str = "linear",
     dt: float | None = None,
     fit_window: float | None = None,
     samples: int = SAMPLES,
@@ -94,6 +96,9 @@ def predict(
             its last ``fit_window`` seconds.
         forcing: known forces over the forecast (a path or ``pandas.DataFrame``: ``t, Fx, Fy[,
             traj_id]``) [s, N, N]; default none.
+        forcing_hold: how ``forcing`` reads between its rows: ``"linear"`` (interpolated) or
+            ``"previous"`` (each row's force held until the next row: thrusters that switch at
+            the rows' times; the forecast's solver steps onto every row).
         dt: output step [s] (default: the history's median step, or 0.05).
         fit_window: seconds of each history its start state is fitted to (default 1).
         samples: start states drawn from each fit's uncertainty and forecast for the band.
@@ -119,6 +124,7 @@ def predict(
     if (initial is None) == (history is None):
         raise ConfigError("give --initial x,y,vx,vy or --history TABLE (one of them)")
     mapping = parse_columns(columns)
+    held({}, forcing_hold)  # a bad --forcing-hold is refused with or without --forcing
     if output is not None:
         check_output_path(Path(output))
         check_table_name(output)
@@ -148,7 +154,11 @@ def predict(
     glitches = 0
     if tracks is not None:
         tracks, glitches = drop_table_outliers(tracks, outliers)
-    forces = read_forcing(forcing, read_origin, mapping, time_unit) if forcing is not None else None
+    forces = (
+        held(read_forcing(forcing, read_origin, mapping, time_unit), forcing_hold)
+        if forcing is not None
+        else None
+    )
     dates = tracks is not None and tracks.time_origin is not None
     if offset:
         if tracks is not None:

@@ -107,6 +107,14 @@ def predict(
             help="Known forces over the forecast (.csv/.parquet: t, Fx, Fy[, traj_id]) [default: none].",
         ),
     ] = None,
+    forcing_hold: Annotated[
+        str,
+        typer.Option(
+            "--forcing-hold",
+            help="How --forcing reads between its rows: linear (interpolated) or previous (each row's "
+            "force held until the next row, as thrusters that switch at the rows' times).",
+        ),
+    ] = "linear",
     dt: Annotated[
         float | None,
         typer.Option("--dt", help="Output step in seconds [default: the history's median step, or 0.05]."),
@@ -170,6 +178,7 @@ def predict(
         t0=t0,
         history=history,
         forcing=forcing,
+        forcing_hold=forcing_hold,
         dt=dt,
         fit_window=fit_window,
         samples=samples,

@@ -500,6 +500,41 @@ def read_forcing(
     return out
 
 
+#: How a forcing table's forces are read between its rows (``fhnn predict --forcing-hold``).
+FORCING_HOLDS = ("linear", "previous")
+#: The width [s] of the ramp that stands for a step in a held forcing table's linear interpolant.
+STEP_WIDTH = 1e-6
+
+
+def held(
+    rows: dict[str | None, tuple[np.ndarray, np.ndarray]], hold: str
+) -> dict[str | None, tuple[np.ndarray, np.ndarray]]:
+    """A forcing table (as :func:`read_forcing` returns it) read as ``hold`` says: ``"linear"``
+    between rows (unchanged), or ``"previous"``: each row's force held until the next row, as
+    thrusters that switch at the rows' times do. A held table is returned as rows whose linear
+    interpolant is that step function: before each row's time a row :data:`STEP_WIDTH` s earlier
+    with the previous force.
+
+    Raises:
+        ConfigError: an unknown ``hold``.
+    """
+    if hold not in FORCING_HOLDS:
+        raise ConfigError(f"--forcing-hold must be one of {', '.join(FORCING_HOLDS)}, got {hold!r}")
+    if hold == "linear":
+        return rows
+    out = {}
+    for key, (t, force) in rows.items():
+        gaps = np.diff(t)
+        before = t[1:] - np.minimum(STEP_WIDTH, gaps / 2)
+        times = np.empty(2 * t.size - 1)
+        times[0::2], times[1::2] = t, before
+        values = np.empty((times.size, 2))
+        values[0::2], values[1::2] = force, force[:-1]
+        order = np.argsort(times, kind="stable")
+        out[key] = (times[order], values[order])
+    return out
+
+
 def check_table_name(path: str | os.PathLike[str]) -> Path:
     """``path`` as a :class:`Path` if it names a ``.csv`` or ``.parquet`` file; else ConfigError."""
     path = Path(path)

@@ -414,6 +414,30 @@ def _draw_starts(starts: np.ndarray, cov: np.ndarray, samples: int, seed: int) -
     return drawn.reshape(-1, 4)
 
 
+def _with_forcing_rows(
+    times: np.ndarray, ids: list[str], forcing_table: dict[str | None, tuple[np.ndarray, np.ndarray]] | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The output times ``times`` ``(N, T)`` with each track's forcing rows inside them added (the
+    solver steps onto every time, so a force that changes at a row — a held step — changes there,
+    not smeared over an output step), padded to one length by midpoints of the widest intervals:
+    ``(grid (N, L), picks (N, T))``, ``grid[i, picks[i]] == times[i]``."""
+    grids = []
+    for i, traj in enumerate(ids):
+        t = times[i]
+        rows = None if forcing_table is None else forcing_table.get(traj, forcing_table.get(None))
+        extra = np.zeros(0) if rows is None else rows[0][(rows[0] > t[0]) & (rows[0] < t[-1])]
+        grids.append(np.union1d(t, extra))
+    size = max(g.size for g in grids)
+    for i, g in enumerate(grids):
+        while g.size < size:
+            j = int(np.argmax(np.diff(g)))
+            g = np.insert(g, j + 1, 0.5 * (g[j] + g[j + 1]))
+        grids[i] = g
+    grid = np.stack(grids)
+    picks = np.stack([np.searchsorted(grid[i], times[i]) for i in range(len(ids))])
+    return grid, picks
+
+
 def predict_tracks(
     model: AbstractVectorField,
     *,
@@ -449,9 +473,10 @@ def predict_tracks(
         start_t = np.array([tr.t[-1] for tr in history.trajectories])
     steps = max(1, round(duration / dt))
     times = start_t[:, None] + np.linspace(0.0, duration, steps + 1)[None, :]
-    forces = np.zeros((*times.shape, 2))
+    grid, picks = _with_forcing_rows(times, ids, forcing_table)
+    forces = np.zeros((*grid.shape, 2))
     for i, traj in enumerate(ids):
-        f = _forces_at(forcing_table, traj, times[i], required=True)
+        f = _forces_at(forcing_table, traj, grid[i], required=True)
         if f is not None:
             forces[i] = f
     n = len(ids)
@@ -461,7 +486,8 @@ def predict_tracks(
         draws = samples
     # the tracks' forecasts and those of their drawn start states, as one rollout
     rep = lambda a: np.broadcast_to(a, (1 + draws, *a.shape)).reshape(-1, *a.shape[1:])  # noqa: E731
-    out, fine = forecast(model, starts, rep(times), rep(forces))
+    out, fine = forecast(model, starts, rep(grid), rep(forces))
+    out = np.take_along_axis(out, rep(picks)[..., None], axis=1)  # the output times alone
     states, ok = out[:n], fine[:n]
     drawn = None
     if draws:
