@@ -1,4 +1,4 @@
-"""FHNN: Floating-Body Hydrodynamic Neural Network (SPEC §4.1).
+"""FHNN: Floating-Body Hydrodynamic Neural Network (the paper's model).
 
 The vector field is the analytic :class:`~fhnn.physics.dynamics.EquationsOfMotion` with two learned
 parts in place of the unknown physics:
@@ -7,75 +7,16 @@ parts in place of the unknown physics:
   ``u = ∇⊥ψ_θ`` (divergence-free by construction);
 - :class:`CoefficientNet` ``g_φ(r, σ)`` — an MLP whose four raw outputs ``z`` become
   ``(m_ax, m_ay, c_q, c_l) = C · tanh(softplus(z) / C)``, ``C = (60, 60, 2, 10)``. The paper prints
-  ``C · sigmoid(softplus(z)/C)``, which only reaches ``(C/2, C)`` (SPEC §4.1 erratum); it remains
+  ``C · sigmoid(softplus(z)/C)``, which only reaches ``(C/2, C)`` (an erratum); it remains
   available as ``cap_map="sigmoid"``.
 
-Identifiability: the drag force is ``−(½ρA c_q(σ) σ + c_l) v_rel``; if both ``c_q`` and ``c_l`` were
-free functions of ``(r, σ)`` only their combination ``½ρA c_q σ + c_l`` could be learned from data
-(any ``c_l(σ)`` can be traded against ``c_q(σ)``). By default ``c_l`` is therefore one learned
-constant (``linear_drag="constant"``) — it is then the ``σ → 0`` limit of the drag and ``c_q(σ)``
-is identified too, in principle: data reach down to some least σ only, so how well the two are
-told apart rests on the slowest relative speeds the data hold (``benchmarks/own_data.py``, positions
-only with 1 mm noise: c_l 2.2 % off and c_q 5.6 %, against 0.18 % for the total drag, on data
-seed 0; c_l 8.1 % on seed 1, where the c_q net came out nearly flat in σ; ``fhnn inspect``
-reports the total as ``drag``); ``linear_drag="net"`` is the paper's form, all four outputs of
-``g_φ(r, σ)``. Because an error in the total drag ``K(σ)`` costs a window in proportion to σ², an
-unweighted loss hardly sees the slow windows that fix ``c_l = K(0)``: on exact ``steady_vortex``
-data the fit left ``K`` exact above σ = 0.05 m/s and 0.2–0.8 % off below it (1 % of the windows),
-``c_l`` 0.8–1.0 % high and ``c_q`` 4–10 % low at slow speeds. ``slow_weight = 2`` weighs each
-window by ``(σ̃/σ)²`` so that a relative error of ``K`` costs alike at every speed
-(:meth:`FHNN.loss_terms`): there ``c_l`` came out 0.17, 0.20 and 0.01 % off on three data seeds. It is
-not the default: in a full reproduction with it (``docs/benchmarks/slow_weight.txt``) it broke
-``obstacle`` (masses 0.6 → 24 % off, RMSE(pos) at 5 s 13× worse) and ``wave`` (``c_l`` 1.9 →
-9.2 %, 12× worse), and on estimated velocities it made the drag worse. That reproduction's
-quasi-Newton phases recomputed the weights at every iterate, their derivative left out, which
-stalled L-BFGS; they now hold the weights of the model each phase starts from
-(:meth:`FHNN.quasi_newton_weights`): ``obstacle``'s masses then came out 1.0 / 1.1 % off, but its
-flow 1.3 % and ``wave``'s ``c_l`` 13.7 %, so it stays an option. ``slow_weight = 1`` with the
-full default plan settles the split on clean data (``steady_vortex``: ``c_l`` 0.08–0.15 % off on
-three data seeds, the σ bands with ≥ 20 % quadratic share within 0.9 %) but not on noisy
-observations (numbers in the same file), so the default plan (``fhnn.training.plans``) sets it
-on data with noise-free observations only.
-
-Without known forcing, and without a Morison force that tells inertia from drag
-(:attr:`~fhnn.data.dataset.Dataset.masses_are_gauge`), the masses are a free gauge: only
-``c / (M + m_a)`` enters the motion. With masses from ``g_φ(r, σ)`` that gauge may vary with σ, and
-the split of the drag over the inertia with it (``c_l / (M + m_a(σ))`` is then whatever function of
-σ the nets make smooth); ``added_mass="constant"`` holds the gauge to one number per axis, and
-``fhnn train`` sets it on such data (numbers in :func:`fhnn.training.plans.data_settings`). It
-assumes the ratio ``(M + m_ay) / (M + m_ax)``, which such data do fix, constant in ``(r, σ)``.
-
-Far field (beyond the paper): a tanh MLP saturates outside the data, so its flow tends to a
-constant there. ``far_field="linear"`` (default) adds a learned linear flow to the net —
-``ψ_lin = ½ xᵀQx + bᵀx`` (uniform stream, rotation, strain; 5 parameters) — and the smoothness
-penalty acts on the MLP part only, so a flow with constant curvature (solid-body rotation has
-``‖Hψ‖²_F = 2Ω²``) is not biased towards zero curvature and extrapolates exactly.
-``far_field="none"`` is the paper's plain MLP. The split between the two parts is not fixed by
-the data (both can carry a rotation), and the MLP extrapolates a rotation it carries as a flow that
-dies away outside the data; so with a linear far field the MLP starts with zero output weights and
-sits out the trainer's warm-up when one is asked for (``TrainConfig.warmup_steps``,
-:meth:`FHNN.warmup`): the linear flow and the coefficients are fitted first, and the MLP
-then learns only what a linear flow cannot explain. (Measured on
-``solid_body_vortex`` without the warm-up: the MLP took 93 % of the rotation, and the learned flow
-was 80–92 % wrong at r = 10–20 m, where the 60 s test rollouts go.)
-
-Time-dependent flows (beyond the paper): the paper's ψ_θ(x, y, t) is one MLP with time as a third
-input, which has to build every oscillation of the flow out of tanh units in t — a deep-water wave
-of period 4 s is five periods over a 20 s record. By default the MLP sees position only and its
-``2K + 1`` outputs multiply a harmonic basis in time (``time_modes = K``, :func:`harmonic_basis`):
-``ψ = Σ_c MLP_c(ξ) φ_c(t)``, a Fourier series in time whose coefficients are smooth fields in
-space. Measured on ``wave`` (data seed 0, validation split, the default plan of the time: Adam
-12,000 + L-BFGS 700 on the derivative and one-step losses): validation loss
-1.3e-4 → 2.8e-7, RMSE(pos) of 5 s rollouts 1.2e-2 → 1.9e-4 m, masses 74 % → 0.1 % off, flow
-585 % → 0.46 % off (relative L2); on ``time_varying_vortex`` validation loss 3.9e-6 → 3.3e-6 and
-flow 7.7 % → 1.6 % off. ``time_modes=0`` gives the paper's form back.
-
-Radius extrapolation (beyond the paper): the coefficient net sees ``r`` clipped to the range of
-radii in the training data (``r_extrapolation="hold"``, default), so outside that range the
-coefficients are held at their values at its edge instead of following the MLP's arbitrary
-extrapolation (measured on ``solid_body_vortex``, whose 60 s test rollouts reach r = 11–20 m
-against ≤ 4.5 m in training: the unclipped net's drag ratio was 25–46 % off at r = 20 m).
-``"net"`` is the paper's form. ``σ`` is not clipped: its range depends on the unknown flow.
+Beyond the paper, each a setting of :class:`FHNNConfig`: ``c_l`` one learned constant
+(``linear_drag``) and the slow windows weighed up (``slow_weight``), so that the drag splits into
+``c_l`` and ``c_q(σ)``; added masses held constant where the data leave them a free gauge
+(``added_mass``); a learned linear far field beside the MLP (``far_field``); a harmonic basis in
+time for a time-dependent flow (``time_modes``); the coefficients held at the edge of the training
+radii (``r_extrapolation``); positions measured from the data's centre (``centre``). Why each, and
+what was measured to take it: the design note ``docs/design/model.md``.
 
 Known body constants ``M, ρ, A, V`` come from the data set. Ablations (paper Table "ablation"):
 ``no_added_mass`` (m_a ≡ 0), ``no_linear_drag`` (c_l ≡ 0), ``no_flow`` (u ≡ 0), ``shallow`` (one
@@ -138,7 +79,7 @@ class FHNNConfig(Config):
             (c_l(r, σ) from g_φ, as in the paper; only ½ρA c_q σ + c_l is then identifiable).
         added_mass: "net" (m_ax(r, σ), m_ay(r, σ) from g_φ, as in the paper) or "constant" (two
             learned constants): where the masses are not identifiable, only ``c / (M + m_a)``
-            (see the module docstring), ``fhnn train`` sets "constant".
+            (design note docs/design/model.md), ``fhnn train`` sets "constant".
         far_field: "linear" (MLP plus a learned linear flow, penalty on the MLP part) or "none".
         r_extrapolation: "hold" (the coefficient net sees r clipped to the training data's range)
             or "net" (the MLP's own extrapolation, as in the paper).
@@ -154,7 +95,7 @@ class FHNNConfig(Config):
             fixed), ``σ̃`` the batch's median (see :meth:`FHNN.loss_terms`); 0: every window
             alike. 1 (default) settles the drag split on noise-free observations; data with
             observation noise set 0 (:func:`~fhnn.training.plans.data_settings`); 2 settles it on
-            ``steady_vortex`` but not on every scenario (module docstring).
+            ``steady_vortex`` but not on every scenario (design note docs/design/model.md).
         centre: where the flow net's inputs and the coefficients' ``r`` are measured from:
             "data" (the data set's :attr:`~fhnn.data.dataset.Dataset.centre`: the mean training
             position of imported data, the coordinate origin of a simulated scenario), which
@@ -529,7 +470,7 @@ def build_fhnn(
         modes = config.time_modes if time_dependent else 0
         n_in = 3 if time_dependent and not modes else 2  # ξ, and τ in the paper's form
         mlp = eqx.nn.MLP(n_in, 1 + 2 * modes, config.width, depth, activation=act, key=k_flow)
-        if config.far_field == "linear":  # the MLP starts at zero flow: see the module docstring
+        if config.far_field == "linear":  # the MLP starts at zero flow: docs/design/model.md
             mlp = eqx.tree_at(lambda m: m.layers[-1].weight, mlp, jnp.zeros_like(mlp.layers[-1].weight))
         flow = StreamNet(
             mlp=mlp,
