@@ -60,9 +60,7 @@ class TrainConfig(Config):
         w_shoot: weight of the multi-step loss.
         shoot_skip: the multi-step windows start at this sample of a trajectory or later (on
             both splits): a smoother's velocity estimate at a trajectory's first samples sees one
-            side of it only and is several times worse than inside (issue 14's data: 15, 9.8,
-            6.7, 4.5 mm/s at samples 0–3 and 1.5 mm/s inside), and a window's prediction starts
-            from it.
+            side of it only, and a window's prediction starts from it.
         lbfgs_stride: the quasi-Newton phases draw their ``lbfgs_pairs`` examples from the
             windows starting every ``lbfgs_stride`` samples (from ``shoot_skip``); with the
             multi-step loss, ``shoot − 1`` tiles each trajectory with windows that share only
@@ -72,8 +70,7 @@ class TrainConfig(Config):
             with ``added_mass="constant"``). Adam moves a parameter by about the rate times
             its gradient's mean over its spread; c_l's gradient is noisy and the c_q net soaks up
             its error (c_q(σ) ≈ 1/σ at small σ mimics a linear drag), so at the plain rate c_l
-            barely leaves its initial value in a short run (issue 14's data: 2.0 → 2.2 in 4,000
-            steps, truth 3.0, on clean data as on noisy). A constant mass is one such value too.
+            barely leaves its initial value in a short run. A constant mass is one such value too.
         shoot_noise: ``(σ_x [m], σ_v [m/s])``, the noise of the observed positions and the error
             of the estimated velocity a multi-step window starts from ((0, 0): not modelled).
             With ``σ_x > 0`` the multi-step loss weighs each window's position residuals ``r``
@@ -88,10 +85,7 @@ class TrainConfig(Config):
             mode, held fixed in the gradient as generalised least squares holds its weights;
             :func:`fhnn.models.base.start_error_weighted_by`), damped by the drag and turned by
             the flow, which free flight overstates on windows long against the drag's time
-            ``(M + m_a)/c`` (about 6 s on issue 14's data). Measured there (``benchmarks/own_data.py
-            --set train.shoot_drift=model``, data seeds 0 / 1): the validation forecast at 5 s
-            2.24 → 2.13 / 2.30 → 2.27 mm, ``c_l`` 2.2 → 2.8 / 8.1 → 8.5 % off, a step about twice
-            as dear; not the default.
+            ``(M + m_a)/c``; not the default (design note ``docs/design/plans.md``).
         warmup_accept: what the warm-up's validation loss decides (0: nothing — Adam always
             follows the warm-up). Above 0, a warm-up whose validation loss is at or below it is
             kept and the Adam phase is skipped (the polish starts from the warm-up: the linear
@@ -108,9 +102,7 @@ class TrainConfig(Config):
             seed (each trajectory's windows weighted by its own random weight, see
             :func:`bootstrap_weights`; the validation split is left whole). ``fhnn train
             --seeds N`` sets it, so the spread of an ensemble's members holds the data's
-            sampling noise as well as that of their initialisation and batch order: on issue
-            14's data the members trained on the same
-            data agreed on the added masses to 0.1–0.4 % while their median was 0.5 % off.
+            sampling noise as well as that of their initialisation and batch order.
         stop_rising: the Adam phase ends early once the validation loss has risen at this many
             validations in a row (0: never); the polish, if any, then starts from the best model,
             as it always does. Six rises in a row — seven
