@@ -115,6 +115,10 @@ class TrainState:
     skipped: float = 0.0
     stopped: str | None = None
 
+    def add_stop(self, why: str) -> None:
+        """Record one more reason training stopped early (after any before it)."""
+        self.stopped = f"{self.stopped}; {why}" if self.stopped else why
+
 
 def stop_reason(history: list[dict[str, Any]], config: TrainConfig) -> str | None:
     """Why Adam must stop after the last record of ``history`` (``None``: it goes on): every step
@@ -343,7 +347,7 @@ class Trainer:
             )
             if late is not None:
                 record["budget"] = True
-                state.stopped = f"{state.stopped}; {late}" if state.stopped else late
+                state.add_stop(late)
                 state.step = self.total_steps
             if callback is not None:
                 callback(state, record)
@@ -361,7 +365,7 @@ class Trainer:
             f"the whole-track fit stopped before iteration 1 of {left}: the time budget "
             f"({self.budget.describe('tracks')}) would run out during it, after {self.budget.spent():.0f} s"
         )
-        state.stopped = f"{state.stopped}; {late}" if state.stopped else late
+        state.add_stop(late)
         state.step = self.total_steps
         return state
 
@@ -478,7 +482,7 @@ class Trainer:
         if reason is not None:
             state.stopped = f"Adam stopped at step {record['step']} of {stop.steps}: {reason}"
         elif late is not None:
-            state.stopped = f"{state.stopped}; {late}" if state.stopped else late
+            state.add_stop(late)
         ended = reason is not None or late is not None
         if stop is not None and ended:
             state.step = stop.steps
