@@ -151,12 +151,11 @@ def train_members(
     n = len(runs)
     callbacks = callbacks or [None] * n
     on_steps = on_steps or [None] * n
+    budget = budget if budget is not None else Budget.of(runs[0].train_config)
     if not together or any(MODELS[r.kind].fit is not None for r in runs):
-        budget = budget if budget is not None else Budget.of(runs[0].train_config)
         for j, (run, callback, on_step) in enumerate(zip(runs, callbacks, on_steps, strict=True)):
             run.train(dataset, callback=callback, on_step=on_step, budget=budget.share(n - j))
         return
-    budget = budget if budget is not None else Budget.of(runs[0].train_config)
     trainers = [run.trainer(dataset, on_step, budget) for run, on_step in zip(runs, on_steps, strict=True)]
     for j, run in enumerate(runs):
         with budget.turn("warmup", n - j):
