@@ -164,10 +164,13 @@ def rewind_cut(state: TrainState, config: TrainConfig) -> str | None:
     if state.stopped is not None:
         kept = [part for part in state.stopped.split("; ") if "the time budget" not in part]
         state.stopped = "; ".join(kept) or None
-    planned = {None: config.steps, "lbfgs": config.lbfgs_steps, "tracks": config.track_steps}[phase]
-    done = {None: state.step, "lbfgs": state.step - config.steps}.get(
-        phase, state.step - config.steps - config.lbfgs_steps
-    )
+    # the phases count on in one step counter: Adam, then the polish, then the whole-track fit
+    planned, offset = {
+        None: (config.steps, 0),
+        "lbfgs": (config.lbfgs_steps, config.steps),
+        "tracks": (config.track_steps, config.steps + config.lbfgs_steps),
+    }[phase]
+    done = state.step - offset
     unit = "step" if phase is None else "iteration"
     where = f"{unit} {done:,} of {planned:,}"
     return f"continues the {PHASE_LABELS[phase]} from {where}, where the time budget cut it"
