@@ -10,11 +10,12 @@ from typing import Any
 
 import numpy as np
 
-from fhnn.api.fit import Fit, as_fit, load_runs
+from fhnn.api.fit import Fit, load_runs
 from fhnn.data.cleaning import OUTLIER_SIGMAS, drop_table_outliers
 from fhnn.data.clock import SECONDS_ONLY, seconds_to_date_times
 from fhnn.data.table import (
     Table,
+    check_forcing_hold,
     check_table_name,
     held,
     parse_columns,
@@ -124,7 +125,7 @@ def predict(
     if (initial is None) == (history is None):
         raise ConfigError("give --initial x,y,vx,vy or --history TABLE (one of them)")
     mapping = parse_columns(columns)
-    held({}, forcing_hold)  # a bad --forcing-hold is refused with or without --forcing
+    check_forcing_hold(forcing_hold)  # refused with or without --forcing
     if output is not None:
         check_output_path(Path(output))
         check_table_name(output)
@@ -188,7 +189,10 @@ def predict(
     banded = len(forecasts) > 1 or forecasts[0].samples is not None
     result = Forecast.of_ensemble(forecasts, INTERVAL) if banded else forecasts[0]
     if banded and check:
-        result = _checked(result, fit if fit is not None else as_fit(run), samples, notes)
+        # the runs are loaded already: the fit takes them and their data set
+        result = _checked(
+            result, fit if fit is not None else Fit(runs, runs[0].dataset(), Path(run)), samples, notes
+        )
     notes += _notes(forces is None, glitches, outliers, tracks is not None, result)
     warnings = []
     failed = [i for i, ok in zip(result.ids, result.ok, strict=True) if not ok]

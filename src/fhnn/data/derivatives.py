@@ -359,11 +359,8 @@ def derivative_error(
     pick = np.sort(rng.permutation(len(curves))[: max(1, ERROR_SERIES // len(curves[0][1]))])
     chosen = [(curves[i][0], z) for i in pick for z in curves[i][1]]
     fitted = fit(chosen)
-    noisy = [x[:, 0] + rng.normal(0.0, noise, x.shape[0]) for x in fitted]
-    again = [
-        (curves[i][0], z)
-        for i, z in zip(np.repeat(pick, [len(curves[i][1]) for i in pick]), noisy, strict=True)
-    ]
+    # each pair keeps its curve's times array, so the refit groups the axes as the fit did
+    again = [(t, x[:, 0] + rng.normal(0.0, noise, t.size)) for (t, _), x in zip(chosen, fitted, strict=True)]
     refitted = fit(again)
     diff = np.concatenate([b[:, 1] - a[:, 1] for a, b in zip(fitted, refitted, strict=True)])
     return float(np.sqrt(np.mean(diff**2)))

@@ -518,8 +518,7 @@ def held(
     Raises:
         ConfigError: an unknown ``hold``.
     """
-    if hold not in FORCING_HOLDS:
-        raise ConfigError(f"--forcing-hold must be one of {', '.join(FORCING_HOLDS)}, got {hold!r}")
+    check_forcing_hold(hold)
     if hold == "linear":
         return rows
     out = {}
@@ -530,9 +529,15 @@ def held(
         times[0::2], times[1::2] = t, before
         values = np.empty((times.size, 2))
         values[0::2], values[1::2] = force, force[:-1]
-        order = np.argsort(times, kind="stable")
-        out[key] = (times[order], values[order])
+        out[key] = (times, values)  # increasing: each added row lies inside its gap
     return out
+
+
+def check_forcing_hold(hold: str) -> str:
+    """``hold`` if it is one of :data:`FORCING_HOLDS`; else :class:`ConfigError`."""
+    if hold not in FORCING_HOLDS:
+        raise ConfigError(f"--forcing-hold must be one of {', '.join(FORCING_HOLDS)}, got {hold!r}")
+    return hold
 
 
 def check_table_name(path: str | os.PathLike[str]) -> Path:

@@ -52,7 +52,8 @@ def evaluate(
     truth = data.states_clean[:, :size]
     train_cov = coverage(dataset, dataset.train)
     pred = np.where(np.isfinite(ro.states), ro.states, np.nan)
-    r = np.hypot(pred[..., 0] - dataset.centre[0], pred[..., 1] - dataset.centre[1])
+    offset = pred[..., :2] - dataset.centre
+    r = np.hypot(offset[..., 0], offset[..., 1])
     if dataset.imported:  # no true flow: the region is (r, |v|)
         second, lo_hi = np.hypot(pred[..., 2], pred[..., 3]), train_cov["speed"]
     else:  # σ of the predicted states in the true flow

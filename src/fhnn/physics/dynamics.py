@@ -71,8 +71,8 @@ class EquationsOfMotion(eqx.Module):
         """``r = ‖x − x₀‖`` [m] of positions ``(..., 2)`` [m]: what the coefficients see."""
         pos = jnp.asarray(positions)
         if self.origin is not None:
-            pos = pos - self.origin
-        return jnp.hypot(pos[..., 0], pos[..., 1])
+            pos = pos - jax.lax.stop_gradient(self.origin)
+        return safe_norm(pos)
 
     def relative_speed(self, state: Array, t: Array) -> Array:
         """``σ = ‖v − u(x, t)‖ + ε`` [m/s] for one state of shape ``(4,)``."""
@@ -87,8 +87,7 @@ class EquationsOfMotion(eqx.Module):
         u = self.flow.velocity(pos, t)
         v_rel = vel - u
         sigma = safe_norm(v_rel) + self.eps
-        r = safe_norm(pos if self.origin is None else pos - jax.lax.stop_gradient(self.origin))
-        coeff = self.coefficients(r, sigma)
+        coeff = self.coefficients(self.radius(pos), sigma)
         added_mass, c_q, c_l = coeff[:2], coeff[2], coeff[3]
         total = force - (0.5 * rho * area * c_q * sigma + c_l) * v_rel
         if self.fluid_inertia:
