@@ -47,6 +47,8 @@ from fhnn.training.plans import PAPER_FHNN, PAPER_TRAIN, PLANS
 from fhnn.training.run import RunConfig
 from fhnn.training.train_config import TrainConfig
 
+pytest_plugins = ["tests.crash_retry"]
+
 #: Under pytest-xdist the controller makes the folder and its workers inherit it, so a program one
 #: worker compiled the other loads (both compile the same small FHNN programs); the controller
 #: removes it at exit. Without xdist, or if the controller never read this file, each process has
