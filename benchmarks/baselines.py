@@ -2,7 +2,7 @@
 
 For ``solid_body_vortex`` (the paper's configuration) and ``steady_vortex`` (with actuation), trains
 FHNN, Neural ODE, HNN, LNN, DHN, dissipative HNN (Adam, ``--steps`` steps each, same batch size and
-schedule) and fits SINDy, then prints RMSE / ADE / FDE of positions at 1 s and 5 s (SPEC §5, and in
+schedule) and fits SINDy, then prints RMSE / ADE / FDE of positions at 1 s and 5 s (docs/spec.md §5, and in
 the paper's averaging over t = 0, 1, …, H), with diverged rollouts counted and shown as diverged.
 The paper's own numbers (its data) at 5 s: HNN 1.77 m, LNN 5.85e10 m, DHN 1.02 m, FHNN 6.09e-4 m.
 
@@ -70,7 +70,7 @@ def main() -> None:
                 res["paper_avg" if zero else "spec"] = out
             report[name][kind] = {"seconds": secs, **res}
             print(f"  {name:18s} {kind:6s} trained in {secs:6.0f} s", flush=True)
-        print(f"\n{name}: position errors [m] (SPEC averaging over t = 1..H; diverged rollouts counted)")
+        print(f"\n{name}: position errors [m] (averaged over t = 1..H, docs/spec.md §5; diverged counted)")
         heads = [f"{k} {h}s" for h in (1, 5) for k in ("RMSE", "ADE", "FDE")]
         print(f"  {'model':6s} " + " ".join(f"{h:>18s}" for h in heads) + "  paper RMSE 5s")
         for kind in models:

@@ -41,7 +41,7 @@ from fhnn.training.run import Run
 def curve(model) -> None:
     co = model.coefficients
     sig = np.array([0.005, 0.01, 0.02, 0.03, 0.05, 0.08, 0.12, 0.2, 0.3, 0.5, 0.8])
-    true = 0.6 + 0.4 / (1 + sig / 0.2)  # steady_vortex's c_q law (SPEC §1)
+    true = 0.6 + 0.4 / (1 + sig / 0.2)  # steady_vortex's c_q law (docs/spec.md §1)
     for r in (1.0, 2.5):
         out = np.asarray(jax.vmap(lambda s, r=r: co(jnp.asarray(r), s))(jnp.asarray(sig)))
         print(f"r {r} c_l {out[0, 3]}")

@@ -1,6 +1,6 @@
 """An independent NumPy implementation of the ground-truth equations of motion.
 
-Written from SPEC §1–2 separately from the JAX modules (closed-form flows and material
+Written from docs/spec.md §1–2 separately from the JAX modules (closed-form flows and material
 derivatives, scalar code, no autodiff), it serves two purposes: cross-checking the JAX physics in
 tests, and driving ``scipy.integrate.solve_ivp`` in the simulator benchmark.
 

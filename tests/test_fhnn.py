@@ -59,7 +59,7 @@ def test_cap_maps():
     sig_map = np.asarray(jax.vmap(lambda v: cap(v, caps, "sigmoid"))(z))
     assert (tanh_map > 0).all() and (tanh_map < np.asarray(caps)).all()
     assert tanh_map[0].max() < 1e-12  # reaches (almost) zero: m_a < 30 and c_l < 5 are expressible
-    # the paper's printed map cannot go below C/2 (SPEC §4.1 erratum)
+    # the paper's printed map cannot go below C/2 (docs/spec.md §4.1 erratum)
     assert (sig_map >= np.asarray(caps) / 2).all()
     # ≈ softplus while small
     small = jnp.asarray([-3.0, -3.0, -3.0, -3.0])

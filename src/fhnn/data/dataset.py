@@ -1,4 +1,4 @@
-"""Trajectory data sets in memory and in HDF5 files (SPEC §3).
+"""Trajectory data sets in memory and in HDF5 files (docs/spec.md §3).
 
 File layout (``format = "fhnn-trajectories"``, ``format_version = 2``)::
 

@@ -72,7 +72,7 @@ class SimulationConfig(Config):
         dt: sampling interval [s].
         split: fractions (train, val, test); val and test get at least one trajectory each.
         seed: seed of every random draw.
-        actuation: "random" (SPEC §1 sinusoidal forcing) or "none".
+        actuation: "random" (docs/spec.md §1 sinusoidal forcing) or "none".
         actuation_amplitude: upper bound of the forcing amplitudes [N].
         actuation_f_min, actuation_f_max: range of the forcing frequencies [Hz].
         obs_noise: standard deviation of Gaussian noise added to the stored observed states.

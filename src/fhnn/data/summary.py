@@ -1,7 +1,7 @@
 """What a data set covers: split sizes and the ranges of ``r``, speed and ``σ``.
 
 The region the training data covers matters downstream: a rollout that leaves it measures
-extrapolation, not interpolation (SPEC §5).
+extrapolation, not interpolation (docs/spec.md §5).
 """
 
 from __future__ import annotations

@@ -32,7 +32,7 @@ def evaluate(
         horizons: whole seconds.
         split: "train", "val" or "test".
         include_zero: average over checkpoints ``t = 0, 1, …, H`` (the paper's way) instead of
-            ``t = 1, …, H`` (SPEC §5).
+            ``t = 1, …, H`` (docs/spec.md §5).
         both_averagings: also return the other averaging under ``"horizons_other"`` (one rollout).
         keep_rollout: also return the :class:`~fhnn.evaluation.rollout.Rollout` under ``"rollout"``.
 

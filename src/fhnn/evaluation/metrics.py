@@ -1,4 +1,4 @@
-"""Trajectory error metrics at horizons (SPEC §5).
+"""Trajectory error metrics at horizons (docs/spec.md §5).
 
 For a horizon ``H`` [s] the checkpoints are ``t = 1, 2, …, H`` (or ``0, 1, …, H`` with
 ``include_zero=True``, the paper's averaging, where ``t = 0`` contributes zero error). With

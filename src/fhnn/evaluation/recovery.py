@@ -1,4 +1,4 @@
-"""Parameter and flow recovery (SPEC §5, beyond the paper).
+"""Parameter and flow recovery (docs/spec.md §5, beyond the paper).
 
 - Coefficients: the learned ``(m_ax, m_ay, c_q, c_l)(r, σ)`` against the true laws at the
   ``(r, σ)`` pairs the training data visits; per coefficient the mean and the maximum relative

@@ -1,4 +1,4 @@
-"""High-accuracy rollouts of a model from each test trajectory's first state (SPEC §5).
+"""High-accuracy rollouts of a model from each test trajectory's first state (docs/spec.md §5).
 
 A continuous model (a vector field) is integrated with adaptive Dopri8 whose steps land on every
 sample time (no interpolation error), with each trajectory's own ``F_ext(t)``; a discrete model

@@ -1,4 +1,4 @@
-"""The reproduction as a grid of independent jobs (SPEC §6).
+"""The reproduction as a grid of independent jobs (docs/spec.md §6).
 
 Two kinds of job:
 
@@ -51,7 +51,7 @@ class DataSettings(Config):
     """The simulated data sets of a reproduction.
 
     Attributes:
-        n_traj: trajectories per data set (``None``: each scenario's default, SPEC §3).
+        n_traj: trajectories per data set (``None``: each scenario's default, docs/spec.md §3).
         duration: length of train and val trajectories [s] (``None``: the scenario's default).
         dt: sampling interval [s] (``None``: the scenario's default).
         test_duration: length of test trajectories [s]; at least the longest horizon (120 s).

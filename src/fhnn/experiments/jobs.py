@@ -12,7 +12,7 @@ their Adam phases as one program; each job's output is still its own.
 
 Model-job output::
 
-    result.json     specification, timings, metrics at every horizon (SPEC averaging under
+    result.json     specification, timings, metrics at every horizon (the specification's averaging under
                     "spec", the paper's under "paper"), per-trajectory divergence, recovery (FHNN),
                     trained_with (members of the group it was trained in, when more than one)
     rollouts.npz    t (T,), pred (K, T, 4): the first K ≤ 4 test rollouts up to 30 s

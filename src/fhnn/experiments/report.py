@@ -78,7 +78,7 @@ def _first_seed(jobs: list[ModelJob], data: str, variant: str) -> ModelJob | Non
 def make_figures(
     out: Path, jobs: list[ModelJob], results: dict[str, dict], cells: list[Cell], config: ReproduceConfig
 ) -> list[Path]:
-    """The figures of SPEC §6 for each main scenario (PNG and SVG); the ablation bars are the T5
+    """The figures of docs/spec.md §6 for each main scenario (PNG and SVG); the ablation bars are the T5
     cells, the error curves use the tables' statistics (mean, sample std over seeds)."""
     folder = out / "figures"
     folder.mkdir(exist_ok=True)
@@ -194,7 +194,7 @@ def build_report(
 
 def _intro(config: ReproduceConfig, timings: dict[str, Any]) -> str:
     return (
-        f"fhnn {__version__}: the paper's tables (SPEC §6) on our data sets, "
+        f"fhnn {__version__}: the paper's tables (docs/spec.md §6) on our data sets, "
         f"{config.seeds} seed(s) per model"
         + (
             " (trained together, as one ensemble per cell)"

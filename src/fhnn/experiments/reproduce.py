@@ -1,4 +1,4 @@
-"""``fhnn reproduce``: simulate, train, evaluate and report the whole grid (SPEC §6).
+"""``fhnn reproduce``: simulate, train, evaluate and report the whole grid (docs/spec.md §6).
 
 Three phases, each skipping what is already done:
 

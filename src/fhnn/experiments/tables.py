@@ -1,7 +1,7 @@
-"""Tables T1–T6 of SPEC §6 from the model jobs' results: mean ± std over seeds, the paper beside.
+"""Tables T1–T6 of docs/spec.md §6 from the model jobs' results: mean ± std over seeds, the paper beside.
 
 Every cell is one :class:`Cell` — a (table, data set, model, horizon, metric) with our mean and
-sample standard deviation over seeds in SPEC §5's averaging (checkpoints ``t = 1, …, H``) and in
+sample standard deviation over seeds in docs/spec.md §5's averaging (checkpoints ``t = 1, …, H``) and in
 the paper's (``t = 0, …, H``), how many rollouts diverged, and the paper's own number where it
 has one. No rollout and no seed is ever left out (:data:`DIVERGENCE_RULE`): a diverged rollout
 has an infinite error, so a seed with one has an infinite error metric; a cell whose seeds are all
@@ -289,7 +289,7 @@ def to_markdown(cells: list[Cell], seeds: int) -> str:
 def cell_note(seeds: int) -> str:
     """What a table cell holds, for the reader of a report."""
     return (
-        f"Each cell: mean ± sample std over {seeds} seed(s) (SPEC §5 averaging, checkpoints t = 1..H); "
+        f"Each cell: mean ± sample std over {seeds} seed(s) (docs/spec.md §5 averaging, t = 1..H); "
         "'ours, t=0..H' averages the paper's way; 'paper' is the paper's number on its own data. "
         + DIVERGENCE_RULE
     )

@@ -119,7 +119,7 @@ class AbstractModel(eqx.Module):
 
     @abc.abstractmethod
     def loss_terms(self, batch: dict[str, Array], scales: tuple[Array, Array]) -> dict[str, Array]:
-        """Unweighted training loss terms on a batch of windows (SPEC §5).
+        """Unweighted training loss terms on a batch of windows (docs/spec.md §5).
 
         ``batch``: ``s`` ``(B, W, 4)`` consecutive observed states at times ``t`` ``(B, W)``, their
         true derivatives ``deriv`` ``(B, W, 4)``, recorded forces ``forces`` ``(B, W, 2)`` [N],
@@ -142,7 +142,7 @@ class AbstractModel(eqx.Module):
         """Predict every trajectory of ``split`` from its start up to ``until`` [s] (default: the
         trajectories' end) with the trajectory's own forcing (:meth:`predict`). ``rtol``, ``atol``:
         tolerances of an adaptive solver (unused by discrete models); ``from_clean``: start from
-        the clean states (SPEC §5) rather than the observed ones. A trajectory with a non-finite
+        the clean states (docs/spec.md §5) rather than the observed ones. A trajectory with a non-finite
         prediction at one of its real samples is marked diverged. On irregular data each
         trajectory is predicted at its own times, up to the last of them at most ``until`` after
         its start."""

@@ -1,9 +1,9 @@
-"""Baselines behind the same vector-field interface (SPEC §4.2).
+"""Baselines behind the same vector-field interface (docs/spec.md §4.2).
 
 - :class:`NeuralODE` (Chen et al. 2018): an MLP ``(s, F_ext) → ṡ``, all four components.
 - :class:`HNN` (Greydanus et al. 2019): ``H_θ(q, p)``, ``q = (x, y)``, ``p = M_θ ⊙ v`` with a
   learned positive diagonal inertia ``M_θ`` [kg] started at the body's known dry mass ``M``;
-  ``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext``. (With ``p = v``, as SPEC once wrote, a force in N is
+  ``q̇ = ∂H/∂p``, ``ṗ = −∂H/∂q + F_ext``. (With ``p = v``, as the specification once wrote, a force in N is
   added to an acceleration: a response ``M + m_a`` = 22–30 times too strong for the scenarios'
   bodies.) ``M_θ`` trains towards the effective mass ``M + m_a``.
 - :class:`LNN` (Cranmer et al. 2020): ``L_θ(q, q̇)``;

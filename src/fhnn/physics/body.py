@@ -160,7 +160,7 @@ class Body(eqx.Module):
     fluid_inertia: bool = eqx.field(static=True, default=False)
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``body_params`` metadata of a data set (SPEC §3)."""
+        """The ``body_params`` metadata of a data set (docs/spec.md §3)."""
         c = self.coefficients
         return {
             "M": float(self.mass),

@@ -1,4 +1,4 @@
-"""Equations of motion of a rigid body translating in a 2-D flow (SPEC §1).
+"""Equations of motion of a rigid body translating in a 2-D flow (docs/spec.md §1).
 
 State ``s = (x, y, vx, vy)`` [m, m, m/s, m/s]. With ``v_rel = v − u(x, t)``, ``σ = ‖v_rel‖ + ε``
 and coefficients ``(m_ax, m_ay, c_q, c_l) = g(r, σ)``, ``r = ‖x − x₀‖`` (``x₀ = origin``, zero

@@ -1,6 +1,6 @@
 """Background flows of a 2-D incompressible fluid, each defined by a stream function.
 
-Convention (SPEC §1): ``u = ∇⊥ψ = (∂ψ/∂y, −∂ψ/∂x)``, so a vortex with circulation Γ > 0 turns
+Convention (docs/spec.md §1): ``u = ∇⊥ψ = (∂ψ/∂y, −∂ψ/∂x)``, so a vortex with circulation Γ > 0 turns
 counter-clockwise and ``∇·u = 0`` holds identically.
 
 Every flow is an :class:`AbstractFlow` (an Equinox module): ``stream(xy, t)`` gives ψ [m²/s] at one

@@ -3,7 +3,7 @@
 Each scenario is a frozen configuration (:class:`Scenario`) whose fields are every parameter of its
 flow, its body and its initial states; unknown names are rejected. It builds the ground-truth
 :class:`~fhnn.physics.flows.AbstractFlow` and :class:`~fhnn.physics.body.Body`, draws initial
-states from a NumPy generator, and carries the data-set defaults of SPEC §3 (``defaults``).
+states from a NumPy generator, and carries the data-set defaults of docs/spec.md §3 (``defaults``).
 
 >>> sc = get_scenario("steady_vortex", gamma=4.0)
 >>> sc.flow()            # LambOseenVortex(gamma=4.0, core_radius=1.0, ...)
@@ -93,7 +93,7 @@ UNITS = {
 
 @dataclasses.dataclass(frozen=True)
 class DatasetDefaults:
-    """Default data-set settings of a scenario (SPEC §2–3); every one can be overridden.
+    """Default data-set settings of a scenario (docs/spec.md §2–3); every one can be overridden.
 
     Attributes:
         n_traj: number of trajectories over all splits.
@@ -101,7 +101,7 @@ class DatasetDefaults:
         test_duration: length of test trajectories [s] (long-horizon evaluation).
         dt: sampling interval [s].
         split: fractions (train, val, test) of the trajectories.
-        actuation: "random" (sinusoidal forcing, SPEC §1) or "none".
+        actuation: "random" (sinusoidal forcing, docs/spec.md §1) or "none".
         obs_noise: standard deviation of the observation noise on stored states.
     """
 
@@ -170,7 +170,7 @@ def register_scenario(cls: type[Scenario]) -> type[Scenario]:
     return cls
 
 
-# The body and initial states shared by the paper's five scenarios (SPEC §1, §2.1)
+# The body and initial states shared by the paper's five scenarios (docs/spec.md §1, §2.1)
 
 
 @frozen_config
@@ -266,7 +266,7 @@ class _VortexScenario(_PaperBodyScenario):
 @register_scenario
 @frozen_config
 class SteadyVortex(_VortexScenario):
-    """Lamb–Oseen vortex at the origin (SPEC §2.1)."""
+    """Lamb–Oseen vortex at the origin (docs/spec.md §2.1)."""
 
     name: ClassVar[str] = "steady_vortex"
     summary: ClassVar[str] = "Lamb–Oseen vortex at the origin"
@@ -275,7 +275,7 @@ class SteadyVortex(_VortexScenario):
 @register_scenario
 @frozen_config
 class TimeVaryingVortex(_VortexScenario):
-    """Lamb–Oseen vortex with ``Γ(t) = Γ0 (1 + m sin(2π t / period))`` (SPEC §2.2)."""
+    """Lamb–Oseen vortex with ``Γ(t) = Γ0 (1 + m sin(2π t / period))`` (docs/spec.md §2.2)."""
 
     name: ClassVar[str] = "time_varying_vortex"
     summary: ClassVar[str] = "Lamb–Oseen vortex with a periodically varying circulation"
@@ -303,7 +303,7 @@ Mode = tuple[float, float, float, float]
 @register_scenario
 @frozen_config
 class NoisyFlow(_VortexScenario):
-    """Vortex plus a frozen random divergence-free perturbation (SPEC §2.3).
+    """Vortex plus a frozen random divergence-free perturbation (docs/spec.md §2.3).
 
     ``ψ_n = Σ_j b_j cos(k_j·x + φ_j)`` with ``|k_j| ~ U(k_min, k_max)``, direction and φ_j uniform,
     ``b_j = mode_strength / |k_j|``. ``modes`` holds the drawn ``(kx, ky, phase, amp)``; it is drawn
@@ -380,7 +380,7 @@ class NoisyFlow(_VortexScenario):
 @register_scenario
 @frozen_config
 class Obstacle(_BoxStartScenario):
-    """Uniform stream past a cylinder with circulation; near-wall added mass (SPEC §2.4)."""
+    """Uniform stream past a cylinder with circulation; near-wall added mass (docs/spec.md §2.4)."""
 
     name: ClassVar[str] = "obstacle"
     summary: ClassVar[str] = "uniform stream past a cylinder with circulation"
@@ -423,7 +423,7 @@ class Obstacle(_BoxStartScenario):
 @register_scenario
 @frozen_config
 class Wave(_BoxStartScenario):
-    """Neutrally buoyant body under a deep-water wave, with Morison inertia (SPEC §2.5)."""
+    """Neutrally buoyant body under a deep-water wave, with Morison inertia (docs/spec.md §2.5)."""
 
     name: ClassVar[str] = "wave"
     summary: ClassVar[str] = "deep-water linear wave in a vertical plane, Morison inertia force"
@@ -455,7 +455,7 @@ class Wave(_BoxStartScenario):
 @register_scenario
 @frozen_config
 class SolidBodyVortex(Scenario):
-    """Solid-body rotation: the configuration of the paper's published code (SPEC §2.6)."""
+    """Solid-body rotation: the configuration of the paper's published code (docs/spec.md §2.6)."""
 
     name: ClassVar[str] = "solid_body_vortex"
     summary: ClassVar[str] = "solid-body rotation, the configuration of the paper's published code"
@@ -507,7 +507,7 @@ class SolidBodyVortex(Scenario):
         return np.column_stack([pos, vel])
 
 
-#: The five scenarios of the paper's scenario table (SPEC §2.1–2.5).
+#: The five scenarios of the paper's scenario table (docs/spec.md §2.1–2.5).
 PAPER_SCENARIOS = ("steady_vortex", "time_varying_vortex", "noisy_flow", "obstacle", "wave")
 
 

@@ -1,4 +1,4 @@
-"""Training of any :class:`~fhnn.models.base.AbstractModel` on a data set (SPEC §5).
+"""Training of any :class:`~fhnn.models.base.AbstractModel` on a data set (docs/spec.md §5).
 
 Loss ``L = w_deriv L_deriv + w_step L_step + λ_flow(step) L_flow``:
 
