@@ -47,8 +47,7 @@ class TrainConfig(Config):
         track_samples: the most samples (tracks × their padded length) the whole-track fit
             holds, on the training tracks and on the validation tracks each; larger splits are
             cut into pieces and a seeded subset kept (:func:`~fhnn.training.tracks.track_pieces`),
-            so an iteration's cost does not grow with the data (issue 14's 49 training tracks of
-            20 s, 19,257 samples padded, fit whole).
+            so an iteration's cost does not grow with the data.
         lbfgs_pairs: training pairs (a seeded subset) in the quasi-Newton phases.
         lbfgs_memory: curvature pairs kept by L-BFGS.
         shoot: samples per example of the multi-step (multiple-shooting) loss on positions (0 or
@@ -67,33 +66,25 @@ class TrainConfig(Config):
             their end samples, so every interval of the data enters the polish once.
         lr_c_l: multiplier of the learning rate of a constant linear drag (the FHNN's
             ``c_l_raw``; other models have none) and of constant added masses (``mass_raw``,
-            with ``added_mass="constant"``). Adam moves a parameter by about the rate times
-            its gradient's mean over its spread; c_l's gradient is noisy and the c_q net soaks up
-            its error (c_q(σ) ≈ 1/σ at small σ mimics a linear drag), so at the plain rate c_l
-            barely leaves its initial value in a short run. A constant mass is one such value too.
+            with ``added_mass="constant"``), whose noisy gradients leave them near their initial
+            values at the plain rate (design note ``docs/design/plans.md``).
         shoot_noise: ``(σ_x [m], σ_v [m/s])``, the noise of the observed positions and the error
             of the estimated velocity a multi-step window starts from ((0, 0): not modelled).
             With ``σ_x > 0`` the multi-step loss weighs each window's position residuals ``r``
             (per axis) by the inverse of their covariance under those errors,
             ``rᵀ (I + J P Jᵀ)⁻¹ r`` with ``J = [1, t]`` (a start error's drift, free flight over the
-            window) and ``P = diag(1, σ_v²/σ_x²)``: the model gains nothing by damping a start
-            error it cannot see, which otherwise biases the drag up where relative speeds are
-            small (the error is noise the data's drag signal must outweigh there).
+            window) and ``P = diag(1, σ_v²/σ_x²)``, so that the model gains nothing by damping a
+            start error it cannot see.
         shoot_drift: how a start error drifts in that weighting: ``"free"``, in free flight
             (``J = [1, t]`` per axis); ``"model"``, as the model itself carries it — ``J`` the
             window's predicted positions' derivatives with respect to its start state (forward
-            mode, held fixed in the gradient as generalised least squares holds its weights;
-            :func:`fhnn.models.base.start_error_weighted_by`), damped by the drag and turned by
-            the flow, which free flight overstates on windows long against the drag's time
-            ``(M + m_a)/c``; not the default (design note ``docs/design/plans.md``).
+            mode, held fixed in the gradient; :func:`fhnn.models.base.start_error_weighted_by`);
+            not the default (design note ``docs/design/plans.md``).
         warmup_accept: what the warm-up's validation loss decides (0: nothing — Adam always
             follows the warm-up). Above 0, a warm-up whose validation loss is at or below it is
-            kept and the Adam phase is skipped (the polish starts from the warm-up: the linear
-            far field and the coefficients explain the data, and quasi-Newton finishes the job);
-            a warm-up above it is discarded and Adam starts from the initial model (a far field
-            that cannot explain the flow drives the coefficients to a corner Adam does not leave:
-            on ``steady_vortex`` the warm-up sent c_l to 0). The decision is logged in the
-            warm-up's last history record (``"warmup": "kept"`` or ``"discarded"``).
+            kept and the Adam phase is skipped (the polish starts from the warm-up); a warm-up
+            above it is discarded and Adam starts from the initial model. The decision is logged
+            in the warm-up's last history record (``"warmup": "kept"`` or ``"discarded"``).
         max_time: wall-clock budget [s] of the command that trains, compilation and every
             member of an ensemble included (0: none): :class:`~fhnn.training.budget.Budget`. A
             phase cut short by it says so in ``stopped``, and the next command continues it; it
@@ -105,9 +96,7 @@ class TrainConfig(Config):
             sampling noise as well as that of their initialisation and batch order.
         stop_rising: the Adam phase ends early once the validation loss has risen at this many
             validations in a row (0: never); the polish, if any, then starts from the best model,
-            as it always does. Six rises in a row — seven
-            increasing values — happen by chance with probability 1/5040 in a loss that only
-            fluctuates, so the guard catches a diverging or overfitting run, not noise.
+            as it always does.
     """
 
     config_name = "training"
