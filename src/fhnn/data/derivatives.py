@@ -3,44 +3,25 @@
 A user's table has positions (perhaps velocities) at irregular times with noise. Two estimates
 make a data set of it:
 
-- :func:`noise_level` — the observation noise's standard deviation, from how far each sample
-  lies from the cubic through its two neighbours on either side (exact for any cubic, so a smooth
-  trajectory sampled finely contributes almost nothing). The residual of sample ``i`` is
-  ``z_i − Σ_j w_j z_j`` with the Lagrange weights ``w_j`` of its own, irregular neighbour times, so
-  its noise variance is ``σ²(1 + Σ w_j²)``; dividing by that factor and taking a robust spread
-  (1.4826 × median absolute deviation) gives ``σ``, pooled over every trajectory.
-- :func:`smooth_derivatives` — velocities and accelerations, by one of two estimators
-  (:data:`SMOOTHERS`), both held to the noise level by the discrepancy principle (RMS residual
-  ≤ σ: as close to the samples as the noise allows and no closer):
+- :func:`noise_level`: the observation noise's standard deviation, from how far each sample lies
+  from the cubic through its two neighbours on either side, with the Lagrange weights of its own
+  irregular neighbour times (exact for any cubic, so a smooth trajectory sampled finely adds almost
+  nothing), pooled over every trajectory; a trajectory's axes count as one curve, so the estimate
+  does not change when the table is turned.
+- :func:`smooth_derivatives`: velocities and accelerations, by one of two estimators
+  (:data:`SMOOTHERS`), both held to the noise level by the discrepancy principle (residuals no
+  larger than the noise):
 
-  - ``"spline"``: a quintic FITPACK smoothing spline per series
-    (:class:`scipy.interpolate.UnivariateSpline`, ``Σ res² ≤ n σ²``), ~30 ms per 2,000 samples;
+  - ``"spline"``: a quintic FITPACK smoothing spline; a trajectory's axes are one parametric curve
+    with common knots (:func:`spline_derivatives`);
   - ``"kalman"``: a Kalman (Rauch–Tung–Striebel) smoother per trajectory and axis under a
-    white-noise-jerk model (state: position, velocity, acceleration; each interval's transition
-    and process noise computed for its own length, so irregular steps are exact). Its posterior
-    mean is the quintic smoothing spline; the jerk intensity ``q`` is chosen on a quarter-decade
-    grid, pooled over the series. Every series runs at once (``jax.lax.scan`` over time, the
-    series vectorised in chunks of :data:`CHUNK`).
+    white-noise-jerk model, each interval's transition computed for its own length
+    (:func:`kalman_derivatives`); every series runs at once, vectorised in chunks of
+    :data:`CHUNK`.
 
-Measured on a sinusoid sampled at 0.05 s ± 30 % with 1 mm noise (2,000 samples): the noise level
-comes out at 1.01 mm; the velocity's RMS error in the interior is 1.5 mm/s for the spline and
-1.0 mm/s for the Kalman smoother, whose first samples are worse (38 mm/s off at the first, the
-spline at most 13 mm/s in the first 50); a cubic spline gives 2.9 mm/s, a local cubic fit over ±8
-samples 2.5, a spline with generalised cross-validation 3.1 (70× slower), the Kalman smoother at
-the maximum-likelihood ``q`` 3.7 (it follows the positions, not their derivatives). On issue 14's
-tracks (``benchmarks/own_data.py``: ``steady_vortex``, 1 mm noise, 0.05 s ± 30 %) the Kalman
-smoother's velocities are 1.27 / 1.17 mm/s RMS off against the spline's 1.53 / 1.51 (data seeds
-0 / 1; without forcing 0.94 against 0.88), but the spline's estimates trained the better model
-(measured before training weighed each window's start errors, ``train.shoot_noise``),
-judged on the validation split without the truth: ``fhnn predict`` from the first second of each
-validation track, 5 s ahead, is 2.34 / 2.63 mm RMS off the observed positions (1 mm noise
-included) against 2.60 / 2.86 mm (without forcing 2.03 against 3.91). (The multi-step
-validation loss is lower on the Kalman import, 2.79e-2 against 3.47e-2 on seed 0, but only
-because its windows start from better velocities: scored on the same import's windows the two
-models are within 1.5 %.) So the default, ``"auto"`` (:func:`choose_smoother`), is the spline
-up to :data:`AUTO_SPLINE_ROWS` rows and the Kalman smoother above, where FITPACK's time grows out
-of proportion: 2 million rows imported in 6.2 s by default (the Kalman smoother) against 59 s
-with the spline (``docs/benchmarks/own_data_import_speed.json``).
+The default, ``"auto"`` (:func:`choose_smoother`), is the spline up to :data:`AUTO_SPLINE_ROWS`
+rows and the Kalman smoother above. What was measured to choose the estimators and the default:
+design note ``docs/design/smoothers.md``.
 """
 
 from __future__ import annotations

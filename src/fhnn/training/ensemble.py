@@ -10,14 +10,8 @@ another, their Adam phases together as one ``vmap``-ed program per step
 (:func:`~fhnn.training.together.run_together`), their L-BFGS polishes one after another. They have
 the same shapes and configuration, so the first member's compiled programs serve every other
 member, and each stays an ordinary run that can be resumed, inspected or evaluated on its own.
-Three members' Adam steps as one program have 3.78× the throughput of sequential ones for the
-default plan's step and 2.81× for the step with every loss term and the penalty on an H100 GPU,
-but 0.74× and 0.68× on the 2-core CPU (1.15× and 0.93× in a faster hour), where Adam's chunks of
-steps per call already leave no dispatch to share and a step is arithmetic (``benchmarks/training_speed.py``;
-``docs/benchmarks/training_speed*.txt``: ``fhnn train --seeds 3`` end to end 0.98× on the CPU);
-the quasi-Newton phases, whose line searches differ from member to member, stay sequential — all
-of a default-plan run on ``solid_body_vortex`` (its warm-up is kept, Adam skipped), about three
-quarters of one on ``steady_vortex``.
+Whether training the members together pays depends on the machine (design note
+``docs/design/plans.md``).
 
 ``fhnn train --seeds N`` trains each member on its own Bayesian bootstrap of the training
 trajectories (``train.bootstrap``: every trajectory weighted by a random positive weight of mean
@@ -26,9 +20,7 @@ on the same data), so the members' spread holds the data's sampling noise beside
 initialisation's and the batch order's. ``fhnn inspect`` reports it as a 90 % interval at each
 point (:func:`interval`): the members' mean ± ``t(0.95; N−1) · s · √(1 + 1/N)``, ``s`` their
 standard deviation — the interval that holds a value drawn like the members with 90 %
-probability, which is what the truth is to a bagged estimate; the percentiles of a handful of
-members cover the truth far less often than they claim (three members' 5th–95th percentiles span
-about 0.9 of their range, which holds a fourth draw half of the time). ``fhnn predict``'s band
+probability, which is what the truth is to a bagged estimate. ``fhnn predict``'s band
 pools every member's forecasts from many start states, enough for its 5th–95th percentiles
 (:data:`INTERVAL`).
 """

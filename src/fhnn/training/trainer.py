@@ -16,9 +16,7 @@ Four phases:
 1. Warm-up (``warmup_steps`` quasi-Newton iterations; only for models whose
    :meth:`~fhnn.models.base.AbstractModel.warmup` names a part): the part is fitted full-batch
    first. FHNN with a linear far field fits its linear flow and coefficient net this way before
-   the stream MLP joins, so the MLP learns only what a linear flow cannot explain (on
-   ``solid_body_vortex`` the warm-up alone recovers Ω to 1e-5 relative); without the MLP an
-   iteration costs a third of one on the whole model.
+   the stream MLP joins, so the MLP learns only what a linear flow cannot explain.
 2. Adam with a piecewise-constant learning rate (×``lr_decay`` at each fraction in
    ``lr_boundaries``), minibatches drawn from ``jax.random.fold_in(key, step)`` so that a resumed
    run draws the same batches as an uninterrupted one. Once the penalty's weight is zero a step
@@ -32,9 +30,8 @@ Four phases:
 
 The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` windows (the data
 terms, no regulariser), drawn from those starting every ``lbfgs_stride`` samples, with L-BFGS
-keeping ``lbfgs_memory`` curvature pairs (100 by default: on the solid_body_vortex warm-up, 10
-pairs left the validation loss at 5.9e-7 after 300 iterations, 100 pairs reached 1.2e-7). They
-are deterministic; a run interrupted inside one restarts that phase from the last checkpoint.
+keeping ``lbfgs_memory`` curvature pairs. They are deterministic; a run interrupted inside one
+restarts that phase from the last checkpoint.
 """
 
 from __future__ import annotations
