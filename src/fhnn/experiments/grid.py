@@ -167,22 +167,18 @@ class ReproduceConfig(Config):
             :func:`reproduction_models`); on data sets with observation noise the settings such
             data call for replace the fields they name (FHNN ``slow_weight``).
         fast_compile: compile the jobs' programs for compilation speed rather than run speed
-            (LLVM optimisation level 0 in the worker processes: on the 2-core CPU the quick
-            reproduction takes ~23 % less wall time and an Adam step runs 1.6× slower),
-            for runs whose jobs are short, where compilation is most of the time (the quick
-            preset); with ``--workers 1`` the jobs then run in one worker process, not in this
-            one (XLA reads its flags when a process first compiles). Results differ from the usual
+            (LLVM optimisation level 0 in the worker processes), for runs whose jobs are short,
+            where compilation is most of the time (the quick preset); with ``--workers 1`` the
+            jobs then run in one worker process, not in this one (XLA reads its flags when a
+            process first compiles). Results differ from the usual
             compilation's in their last bits (~1e-13 relative), so the setting is part of every
             job's key.
         seeds_together: train each table cell's seeds (one model on one data set) as one task —
             the members of one ensemble, their Adam phases as one ``vmap``-ed program
             (:func:`fhnn.training.ensemble.train_members`) — instead of a job per seed. It pays
-            where one program can fill the machine: on an H100, three seeds' Adam steps as one
-            program had 3.78× (the default plan's step) and 2.81× (every loss term) the throughput
-            of three in sequence (``docs/benchmarks/training_speed_gpu.txt``). On the 2-core CPU it
-            does not (0.74× and 0.68×, 1.15× and 0.93× in a faster hour; ``fhnn train --seeds 3``
-            end to end 0.98×, ``docs/benchmarks/training_speed.txt``), while a job per seed keeps
-            both cores busy, so it is off by default. The vmapped sums change the last bits, so the
+            where one program can fill the machine (a GPU), not on a 2-core CPU, where a job per
+            seed keeps both cores busy, so it is off by default (measurements: design note
+            ``docs/design/plans.md``). The vmapped sums change the last bits, so the
             setting is part of every grouped job's key.
     """
 
