@@ -1,13 +1,15 @@
 """A test whose xdist worker dies of a native fault is run once more, on a fresh worker.
 
 After compiling a program JAX serialises the executable into its persistent compilation cache
-(``executable.serialize()`` in ``jax._src.compilation_cache.put_executable_and_time``), and XLA can
-abort the process there: a worker of this suite died so three times in recent full runs
-(``Fatal Python error: Aborted`` with that frame on top), each time in the same test of
-``test_training_programs.py``, which passed in each of 8 runs of it and of its file alone and in
-the run that retried it. Deserialised CPU executables are a known source of such crashes
-(jax-ml/jax#28908, open). A crash there says nothing of the test, so the test is run again, once;
-a test that crashes a second time fails, and a failing assertion is never run again.
+(``executable.serialize()`` in ``jax._src.compilation_cache.put_executable_and_time``), and XLA
+aborts the process there (``Fatal Python error: Aborted`` with that frame on top) in one test of
+``test_training_programs.py``, at its first ``adam_step``, in each of the last four full runs of the
+suite — never when the test runs alone (8 runs of it and of its file) nor when it is run again on a
+fresh worker. It depends on what the worker compiled before, which is not understood (JAX's cache
+entries are checksummed zlib streams, so a torn file cannot reach XLA; deserialised CPU executables
+are a known crash source, jax-ml/jax#28908). A crash there says nothing of the test, so the test
+is run again, once; a test that crashes a second time fails, and a failing assertion is never run
+again.
 A rerun is reported as ``R`` and counted as "rerun" in the summary line.
 """
 
