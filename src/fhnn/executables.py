@@ -26,9 +26,7 @@ exported (host callbacks, such as Equinox's runtime checks under ``EQX_ON_ERROR=
 :mod:`fhnn.runtime`).
 A stored file that cannot be read or compiled is deleted and the program exported again.
 
-(Serialized XLA executables, :mod:`jax.experimental.serialize_executable`, were tried first: they
-load faster, 0.6 s, but crashed the process at random when run — 3 of 8 ``fhnn reproduce --quick``
-runs; the exported module is recompiled, from JAX's cache, in each process instead.)
+(Why exported modules and not serialized executables: design note ``docs/design/layout.md``.)
 """
 
 from __future__ import annotations
