@@ -10,8 +10,8 @@ compiled once (a training step, a rollout) is loaded, not compiled again, by lat
 processes that share the folder. Every ``fhnn`` command uses the folder
 :func:`default_cache_dir` names (``$FHNN_JAX_CACHE``; by default ``~/.cache/fhnn/jax``): a second
 run of the same shapes then loads its training step, rollouts and simulations instead of compiling
-them — untraced, from the executables :mod:`fhnn.executables` keeps in the same folder (measured in
-``benchmarks/training_speed.py``).
+them — untraced, from the executables :mod:`fhnn.executables` keeps in the same folder
+(``benchmarks/training_speed.py`` times both).
 """
 
 from __future__ import annotations

@@ -84,34 +84,24 @@ def predict(
 ) -> Prediction:
     """Forecast with a trained model from a given state or from the end of observed tracks.
 
-    Times are on the clock of the table the run's data were imported from (its seconds, or
-    seconds after its first date-time), for ``t0``, the history and the forcing alike.
+    Times [s] are on the clock of the table the run's data came from, for every argument.
 
     Args:
         run: a :class:`~fhnn.api.fit.Fit`, or a run or ensemble folder (a vector-field model).
         duration: forecast length [s].
-        initial: start state ``x, y, vx, vy`` [m, m, m/s, m/s] at ``t0``.
-        t0: time of ``initial`` [s].
-        history: observed tracks (a path, a ``pandas.DataFrame`` or a table, columns as for
-            :func:`fhnn.import_table`): each is forecast from its last sample, its state fitted to
-            its last ``fit_window`` seconds.
-        forcing: known forces over the forecast (a path or ``pandas.DataFrame``: ``t, Fx, Fy[,
-            traj_id]``) [s, N, N]; default none.
-        forcing_hold: how ``forcing`` reads between its rows: ``"linear"`` (interpolated) or
-            ``"previous"`` (each row's force held until the next row: thrusters that switch at
-            the rows' times; the forecast's solver steps onto every row).
+        initial, t0: a start state ``x, y, vx, vy`` [m, m/s] and its time [s].
+        history: observed tracks (a path, ``pandas.DataFrame`` or table, columns as for
+            :func:`fhnn.import_table`), each forecast from its state fitted to its last
+            ``fit_window`` [s] (default 1), with ``outliers`` as for the import.
+        forcing, forcing_hold: known forces over the forecast (``t, Fx, Fy[, traj_id]``) [s, N],
+            ``"linear"`` between rows or ``"previous"`` (held until the next row); default none.
         dt: output step [s] (default: the history's median step, or 0.05).
-        fit_window: seconds of each history its start state is fitted to (default 1).
-        samples: start states drawn from each fit's uncertainty and forecast for the band.
-        outliers: drop a history position more than this many noise levels off the cubic through
-            its neighbours before fitting (``None``: keep all).
-        output: also write the forecast here (.csv or .parquet).
-        columns: the history's and forcing table's names of our columns, as for
-            :func:`fhnn.import_table` (``{"traj_id": "track", ...}`` or ``"traj_id=track,..."``).
-        time_unit: the unit of the history's and forcing table's numeric times (``"ms"``, …),
-            read as seconds; ``t0``, ``duration``, ``dt`` and the forecast's ``t`` are seconds.
-        check: check the band on the validation tracks (:func:`check_band`, kept in the run's
-            folder) and widen it where it holds fewer observations than it claims.
+        samples, output: start states drawn from each fit's uncertainty and forecast for the
+            band; a .csv or .parquet file to write the forecast to as well.
+        columns, time_unit: the tables' names of our columns and unit of numeric times, as for
+            :func:`fhnn.import_table`.
+        check: check the band on the validation tracks (:func:`check_band`) and widen it where it
+            holds fewer observations than it claims.
 
     Returns:
         The :class:`Prediction`; with a band (an ensemble, or a history) ``x, y, …`` are the

@@ -51,13 +51,11 @@ def train(
     """Train a model on a data set into the run folder ``out``, or resume the run there.
 
     Settings resolve as :func:`fhnn.training.settings.resolve` says: defaults < plan < what the
-    data imply < ``config_file`` < ``settings`` and the dedicated arguments. A folder that holds
-    a run resumes it with its stored settings; settings that differ from them are refused
-    (``extend`` allows more Adam steps).
+    data imply < ``config_file`` < ``settings`` and the dedicated arguments. A run in ``out``
+    resumes with its stored settings; others are refused (``extend`` allows more Adam steps).
 
     Args:
-        data: a data set, or the path of one (HDF5); a data set in memory is written to
-            ``out/data.h5`` for the runs to record.
+        data: a data set, or its path (HDF5); one in memory is written to ``out/data.h5``.
         out: the run folder (an ensemble's folder with ``seeds`` > 1).
         config: a whole configuration: every one of its settings counts as given.
         plan: a plan of :data:`fhnn.PLANS` (``None``: the default plan for the data).
@@ -65,14 +63,11 @@ def train(
             its own Bayesian bootstrap of the training trajectories.
         settings: settings by dotted name, e.g. ``{"train.steps": 2000}``.
         config_file: a TOML or JSON settings file.
-        model: the model kind (``kind``): one of :data:`fhnn.MODELS`.
-        ablation: ``model.ablation``.
-        steps: ``train.steps``, the Adam steps.
-        seed: ``train.seed``.
-        max_time: ``train.max_time`` [s]: the whole call's time budget (0: none).
+        model: the model kind, one of :data:`fhnn.MODELS`.
+        ablation, steps, seed, max_time: ``model.ablation``, ``train.steps`` (Adam steps),
+            ``train.seed``, ``train.max_time`` (the whole call's time budget [s], 0: none).
         extend: continue a run for more Adam steps (``steps`` larger than its own).
-        progress: progress bars and notes on the terminal (``False``: none; or a
-            :class:`~fhnn.api.report.Reporter`).
+        progress: progress on the terminal (``False``: none; or a :class:`~fhnn.api.report.Reporter`).
         started: when the time budget starts (``time.monotonic()``; default: this call).
 
     Returns:

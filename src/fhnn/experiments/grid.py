@@ -150,51 +150,46 @@ def reproduction_models() -> Config:
 @frozen_config
 class ReproduceConfig(Config):
     """What ``fhnn reproduce`` runs. Settings are addressed with dotted names (``seeds``,
-    ``data.n_traj``, ``train.steps``, ``model.fhnn.width``).
-
-    Attributes:
-        seeds: training seeds per model, 0 … seeds − 1 (each table cell is the mean ± std over them).
-        models: models of T1/T2 (``fhnn`` plus baselines of the registry).
-        ablations: FHNN ablations of T5.
-        main_scenarios: scenarios of T1, T2, T3, T5 and the figures.
-        scenario_table: scenarios of T4.
-        identifiability: add ``steady_vortex`` without actuation to T6.
-        data: the simulated data sets (:class:`DataSettings`).
-        train: the training of every gradient-trained model — the same plan and wall-clock
-            budget for all (:class:`~fhnn.training.train_config.TrainConfig`, default
-            :func:`reproduction_train`; its seed is set per job).
-        model: each model kind's configuration (``ModelOptions``, default
-            :func:`reproduction_models`); on data sets with observation noise the settings such
-            data call for replace the fields they name (FHNN ``slow_weight``).
-        fast_compile: compile the jobs' programs for compilation speed rather than run speed
-            (LLVM optimisation level 0 in the worker processes), for runs whose jobs are short,
-            where compilation is most of the time (the quick preset); with ``--workers 1`` the
-            jobs then run in one worker process, not in this one (XLA reads its flags when a
-            process first compiles). Results differ from the usual
-            compilation's in their last bits (~1e-13 relative), so the setting is part of every
-            job's key.
-        seeds_together: train each table cell's seeds (one model on one data set) as one task —
-            the members of one ensemble, their Adam phases as one ``vmap``-ed program
-            (:func:`fhnn.training.ensemble.train_members`) — instead of a job per seed. It pays
-            where one program can fill the machine (a GPU), not on a 2-core CPU, where a job per
-            seed keeps both cores busy, so it is off by default (measurements: design note
-            ``docs/design/plans.md``). The vmapped sums change the last bits, so the
-            setting is part of every grouped job's key.
+    ``data.n_traj``, ``train.steps``, ``model.fhnn.width``); each field is documented below it.
     """
 
     config_name = "reproduce"
 
     seeds: int = 3
+    """Training seeds per model, 0 … seeds − 1 (each table cell is the mean ± std over them)."""
     models: tuple[str, ...] = tuple(MODELS)
+    """Models of T1/T2 (``fhnn`` plus baselines of the registry)."""
     ablations: tuple[str, ...] = ABLATIONS
+    """FHNN ablations of T5."""
     main_scenarios: tuple[str, ...] = ("solid_body_vortex", "steady_vortex")
+    """Scenarios of T1, T2, T3, T5 and the figures."""
     scenario_table: tuple[str, ...] = PAPER_SCENARIOS
+    """Scenarios of T4."""
     identifiability: bool = True
+    """Add ``steady_vortex`` without actuation to T6."""
     data: DataSettings = DataSettings()
+    """The simulated data sets (:class:`DataSettings`)."""
     train: TrainConfig = dataclasses.field(default_factory=reproduction_train)
+    """The training of every gradient-trained model — the same plan and wall-clock budget for all
+    (:class:`~fhnn.training.train_config.TrainConfig`, default :func:`reproduction_train`; its seed is
+    set per job)."""
     model: ModelOptions = dataclasses.field(default_factory=reproduction_models)  # type: ignore[valid-type]
+    """Each model kind's configuration (``ModelOptions``, default :func:`reproduction_models`); on
+    data sets with observation noise the settings such data call for replace the fields they name
+    (FHNN ``slow_weight``)."""
     fast_compile: bool = False
+    """Compile the jobs' programs for compilation speed rather than run speed (LLVM optimisation level
+    0 in the worker processes), for runs whose jobs are short, where compilation is most of the time
+    (the quick preset); with ``--workers 1`` the jobs then run in one worker process, not in this one
+    (XLA reads its flags when a process first compiles). Results differ from the usual compilation's
+    in their last bits (~1e-13 relative), so the setting is part of every job's key."""
     seeds_together: bool = False
+    """Train each table cell's seeds (one model on one data set) as one task — the members of one
+    ensemble, their Adam phases as one ``vmap``-ed program
+    (:func:`fhnn.training.ensemble.train_members`) — instead of a job per seed. It pays where one
+    program can fill the machine (a GPU), not on a 2-core CPU, where a job per seed keeps both cores
+    busy, so it is off by default (measurements: design note ``docs/design/plans.md``). The vmapped
+    sums change the last bits, so the setting is part of every grouped job's key."""
 
     def validate(self) -> None:
         check_positive(self, "seeds")

@@ -16,7 +16,7 @@ Beyond the paper, each a setting of :class:`FHNNConfig`: ``c_l`` one learned con
 (``added_mass``); a learned linear far field beside the MLP (``far_field``); a harmonic basis in
 time for a time-dependent flow (``time_modes``); the coefficients held at the edge of the training
 radii (``r_extrapolation``); positions measured from the data's centre (``centre``). Why each, and
-what was measured to take it: the design note ``docs/design/model.md``.
+what it gains: the design note ``docs/design/model.md``.
 
 Known body constants ``M, ρ, A, V`` come from the data set. Ablations (paper Table "ablation"):
 ``no_added_mass`` (m_a ≡ 0), ``no_linear_drag`` (c_l ≡ 0), ``no_flow`` (u ≡ 0), ``shallow`` (one
@@ -62,66 +62,62 @@ SLOW_WEIGHT_CAP = 50.0
 @frozen_config
 class FHNNConfig(Config):
     """Architecture of an FHNN. The defaults are what ``fhnn train`` trains on noise-free data;
-    the paper's are width 64 and slow_weight 0 (the ``adam`` plan).
-
-    Attributes:
-        width: hidden units per layer of both nets (32: on the validation loss, width 32 reached
-            1.34e-9 in 90 s against 7.8e-9 in 158 s at 64, ``solid_body_vortex``).
-        depth: hidden layers of both nets (``shallow`` ablation: 1).
-        activation: "tanh" or "relu" (``relu`` ablation).
-        cap_map: "tanh" (corrected, range (0, C)) or "sigmoid" (the paper's printed map).
-        caps: C for (m_ax, m_ay, c_q, c_l).
-        ablation: one of none, no_added_mass, no_linear_drag, no_flow, shallow, relu.
-        time_dependent: ψ(x, y, t) instead of ψ(x, y); None: from the data set's scenario.
-        fluid_inertia: Morison inertia term from the learned ψ; None: from the data set's body.
-        init_coefficients: coefficient values the net starts at (its last bias is set so).
-        linear_drag: "constant" (one learned c_l: the σ → 0 limit of the drag) or "net"
-            (c_l(r, σ) from g_φ, as in the paper; only ½ρA c_q σ + c_l is then identifiable).
-        added_mass: "net" (m_ax(r, σ), m_ay(r, σ) from g_φ, as in the paper) or "constant" (two
-            learned constants): where the masses are not identifiable, only ``c / (M + m_a)``
-            (design note docs/design/model.md), ``fhnn train`` sets "constant".
-        far_field: "linear" (MLP plus a learned linear flow, penalty on the MLP part) or "none".
-        r_extrapolation: "hold" (the coefficient net sees r clipped to the training data's range)
-            or "net" (the MLP's own extrapolation, as in the paper).
-        coefficients_in_r: whether the coefficient net sees ``r`` (as in the paper); ``False``:
-            the coefficients are functions of σ alone.
-        time_modes: harmonics K of a time-dependent flow's basis in time (see :class:`StreamNet`):
-            ψ = MLP(ξ)·(1, cos(πjt/T), sin(πjt/T))_{j=1…K}, T the training data's time window;
-            16 resolve periods down to about T/6. 0: the paper's MLP(ξ, t/T). Unused for a
-            steady flow.
-        slow_weight: exponent ``p`` of the weight ``min((σ̃/σ)^p, SLOW_WEIGHT_CAP)`` of each
-            training window in the data loss, ``σ`` the relative speed at its start under the
-            current model (in the quasi-Newton phases: under the model the phase starts from, held
-            fixed), ``σ̃`` the batch's median (see :meth:`FHNN.loss_terms`); 0: every window
-            alike. 1 (default) settles the drag split on noise-free observations; data with
-            observation noise set 0 (:func:`~fhnn.training.plans.data_settings`); 2 settles it on
-            ``steady_vortex`` but not on every scenario (design note docs/design/model.md).
-        centre: where the flow net's inputs and the coefficients' ``r`` are measured from:
-            "data" (the data set's :attr:`~fhnn.data.dataset.Dataset.centre`: the mean training
-            position of imported data, the coordinate origin of a simulated scenario), which
-            makes a model of imported data independent of where the table's origin lies; or
-            "origin" (the table's coordinate origin).
+    the paper's are width 64 and slow_weight 0 (the ``adam`` plan). Each field is documented
+    below it.
     """
 
     config_name = "fhnn"
 
     width: int = 32
+    """Hidden units per layer of both nets (32: on the validation loss, width 32 reached 1.34e-9 in 90
+    s against 7.8e-9 in 158 s at 64, ``solid_body_vortex``)."""
     depth: int = 3
+    """Hidden layers of both nets (``shallow`` ablation: 1)."""
     activation: Literal["tanh", "relu"] = "tanh"
+    """``"tanh"`` or ``"relu"`` (``relu`` ablation)."""
     cap_map: Literal["tanh", "sigmoid"] = "tanh"
+    """``"tanh"`` (corrected, range (0, C)) or ``"sigmoid"`` (the paper's printed map)."""
     caps: tuple[float, float, float, float] = CAPS
+    """C for (m_ax, m_ay, c_q, c_l)."""
     ablation: AblationName = "none"
+    """One of none, no_added_mass, no_linear_drag, no_flow, shallow, relu."""
     time_dependent: bool | None = None
+    """ψ(x, y, t) instead of ψ(x, y); None: from the data set's scenario."""
     fluid_inertia: bool | None = None
+    """Morison inertia term from the learned ψ; None: from the data set's body."""
     init_coefficients: tuple[float, float, float, float] = (10.0, 10.0, 0.5, 2.0)
+    """Coefficient values the net starts at (its last bias is set so)."""
     linear_drag: Literal["constant", "net"] = "constant"
+    """``"constant"`` (one learned c_l: the σ → 0 limit of the drag) or "net" (c_l(r, σ) from g_φ, as in
+    the paper; only ½ρA c_q σ + c_l is then identifiable)."""
     added_mass: Literal["net", "constant"] = "net"
+    """``"net"`` (m_ax(r, σ), m_ay(r, σ) from g_φ, as in the paper) or "constant" (two learned constants):
+    where the masses are not identifiable, only ``c / (M + m_a)`` (design note docs/design/model.md),
+    ``fhnn train`` sets "constant"."""
     far_field: Literal["linear", "none"] = "linear"
+    """``"linear"`` (MLP plus a learned linear flow, penalty on the MLP part) or "none"."""
     r_extrapolation: Literal["hold", "net"] = "hold"
+    """``"hold"`` (the coefficient net sees r clipped to the training data's range) or "net" (the MLP's
+    own extrapolation, as in the paper)."""
     coefficients_in_r: bool = True
+    """Whether the coefficient net sees ``r`` (as in the paper); ``False``: the coefficients are
+    functions of σ alone."""
     time_modes: int = 16
+    """Harmonics K of a time-dependent flow's basis in time (see :class:`StreamNet`): ψ = MLP(ξ)·(1,
+    cos(πjt/T), sin(πjt/T))_{j=1…K}, T the training data's time window; 16 resolve periods down to
+    about T/6. 0: the paper's MLP(ξ, t/T). Unused for a steady flow."""
     slow_weight: float = 1.0
+    """Exponent ``p`` of the weight ``min((σ̃/σ)^p, SLOW_WEIGHT_CAP)`` of each training window in the
+    data loss, ``σ`` the relative speed at its start under the current model (in the quasi-Newton
+    phases: under the model the phase starts from, held fixed), ``σ̃`` the batch's median (see
+    :meth:`FHNN.loss_terms`); 0: every window alike. 1 (default) settles the drag split on noise-free
+    observations; data with observation noise set 0 (:func:`~fhnn.training.plans.data_settings`); 2
+    settles it on ``steady_vortex`` but not on every scenario (design note docs/design/model.md)."""
     centre: Literal["data", "origin"] = "data"
+    """Where the flow net's inputs and the coefficients' ``r`` are measured from: "data" (the data
+    set's :attr:`~fhnn.data.dataset.Dataset.centre`: the mean training position of imported data, the
+    coordinate origin of a simulated scenario), which makes a model of imported data independent of
+    where the table's origin lies; or "origin" (the table's coordinate origin)."""
 
     def validate(self) -> None:
         check_positive(self, "width", "depth")

@@ -25,10 +25,10 @@ class TrainingPlan:
 
     Attributes:
         name: what ``--plan`` takes.
-        summary: what the plan does and what it was measured to reach.
+        summary: what the plan does and what it reaches.
         train: the training configuration it stands for.
-        model: model settings per model kind that the plan was measured with (e.g. the FHNN's
-            width), applied to runs of that kind only.
+        model: model settings per model kind that go with the plan (e.g. the FHNN's width),
+            applied to runs of that kind only.
     """
 
     name: str
@@ -136,7 +136,7 @@ def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
       after Adam the whole-track fit of :data:`ESTIMATED_VELOCITY_TRACK_STEPS` iterations
       (``train.track_steps``) with its forecast guard.
 
-    What was measured to choose each: the design note ``docs/design/plans.md``.
+    Why each: the design note ``docs/design/plans.md``.
 
     Args:
         dataset: the data set to be trained on.

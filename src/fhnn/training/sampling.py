@@ -22,12 +22,8 @@ def bootstrap_weights(traj: np.ndarray, n_traj: int, seed: int) -> np.ndarray:
 
     Unlike the classical resample (``n_traj`` draws with replacement), no trajectory is left out
     (that one drops about a third of them, and a member then extrapolates its coefficients over
-    the parts of the (r, σ) range only those trajectories covered). Measured on issue 14's data
-    (``benchmarks/own_data.py``, data seed 0), the two agree within their noise: ten members of
-    each hold the masses' truth at 100 % of points, c_q's at 97 % and c_l's at 100 %, with
-    intervals 0.9–1.1 %, 22 % and 13.6 % wide, members' median c_l 6.9 % / 6.0 % off
-    (``docs/benchmarks/own_data_seeds10*.json``). The differences three members showed (m_ax
-    held at 81 % against 51 %) were chance."""
+    the parts of the (r, σ) range only those trajectories covered); on the own-data benchmark
+    the two agree within their noise (design note ``docs/design/plans.md``)."""
     rng = np.random.default_rng([seed, BOOTSTRAP_STREAM])
     weights = n_traj * rng.dirichlet(np.ones(n_traj))
     return weights[traj]

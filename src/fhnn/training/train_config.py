@@ -14,9 +14,9 @@ Array = jax.Array
 
 
 #: Validation loss at or below which the warm-up is kept and Adam skipped (``warmup_accept``).
-#: Measured after 400 warm-up iterations, width 32, data seeds 0 and 1: ``solid_body_vortex`` (a
-#: flow the linear far field explains) 1.1e-8, ``steady_vortex`` (a Lamb–Oseen vortex it does
-#: not) 0.15 — the threshold sits two decades above the first.
+#: After 400 warm-up iterations (width 32, data seeds 0 and 1) ``solid_body_vortex``, a flow the
+#: linear far field explains, reaches 1.1e-8 and ``steady_vortex`` 0.15: the threshold sits two
+#: decades above the first.
 WARMUP_ACCEPT = 1e-6
 
 #: The values of ``TrainConfig.shoot_drift``.
@@ -25,79 +25,7 @@ SHOOT_DRIFTS = ("free", "model")
 
 @frozen_config
 class TrainConfig(Config):
-    """Optimisation settings.
-
-    Attributes:
-        steps: Adam steps (0: quasi-Newton phases only).
-        batch_size: transition pairs per step.
-        lr: initial learning rate.
-        lr_boundaries: fractions of ``steps`` at which the rate is multiplied by ``lr_decay``.
-        lr_decay: factor at each boundary.
-        w_deriv, w_step: weights of the derivative and one-step losses.
-        lambda_flow: initial weight of the flow-smoothness term.
-        flow_anneal: fraction of the steps over which ``lambda_flow`` decays linearly to 0.
-        seed: seed of initialisation and batch order (and of the weights under ``bootstrap``).
-        val_every: steps between validations (the best validation model is kept).
-        val_pairs: at most this many validation pairs are used per validation.
-        warmup_steps: quasi-Newton iterations on the model's warm-up parameters before Adam.
-        lbfgs_steps: quasi-Newton polish iterations after Adam (0: none).
-        track_steps: Levenberg–Marquardt iterations on the whole training tracks after Adam and
-            the polish, from the best model so far (0: none; :mod:`fhnn.training.tracks`; only for
-            models that name their :meth:`~fhnn.models.base.AbstractModel.track_parameters`).
-        track_samples: the most samples (tracks × their padded length) the whole-track fit
-            holds, on the training tracks and on the validation tracks each; larger splits are
-            cut into pieces and a seeded subset kept (:func:`~fhnn.training.tracks.track_pieces`),
-            so an iteration's cost does not grow with the data.
-        lbfgs_pairs: training pairs (a seeded subset) in the quasi-Newton phases.
-        lbfgs_memory: curvature pairs kept by L-BFGS.
-        shoot: samples per example of the multi-step (multiple-shooting) loss on positions (0 or
-            2: off). With ``k ≥ 3`` every example is ``k`` consecutive samples of a trajectory,
-            each with its own times: RK4 from the first, one step per sample interval, and the
-            predicted positions are compared with the observed ones at every later sample — a
-            loss that needs neither measured velocities nor derivatives (``fhnn train`` turns it
-            on for data whose velocities were estimated).
-        w_shoot: weight of the multi-step loss.
-        shoot_skip: the multi-step windows start at this sample of a trajectory or later (on
-            both splits): a smoother's velocity estimate at a trajectory's first samples sees one
-            side of it only, and a window's prediction starts from it.
-        lbfgs_stride: the quasi-Newton phases draw their ``lbfgs_pairs`` examples from the
-            windows starting every ``lbfgs_stride`` samples (from ``shoot_skip``); with the
-            multi-step loss, ``shoot − 1`` tiles each trajectory with windows that share only
-            their end samples, so every interval of the data enters the polish once.
-        lr_c_l: multiplier of the learning rate of a constant linear drag (the FHNN's
-            ``c_l_raw``; other models have none) and of constant added masses (``mass_raw``,
-            with ``added_mass="constant"``), whose noisy gradients leave them near their initial
-            values at the plain rate (design note ``docs/design/plans.md``).
-        shoot_noise: ``(σ_x [m], σ_v [m/s])``, the noise of the observed positions and the error
-            of the estimated velocity a multi-step window starts from ((0, 0): not modelled).
-            With ``σ_x > 0`` the multi-step loss weighs each window's position residuals ``r``
-            (per axis) by the inverse of their covariance under those errors,
-            ``rᵀ (I + J P Jᵀ)⁻¹ r`` with ``J = [1, t]`` (a start error's drift, free flight over the
-            window) and ``P = diag(1, σ_v²/σ_x²)``, so that the model gains nothing by damping a
-            start error it cannot see.
-        shoot_drift: how a start error drifts in that weighting: ``"free"``, in free flight
-            (``J = [1, t]`` per axis); ``"model"``, as the model itself carries it — ``J`` the
-            window's predicted positions' derivatives with respect to its start state (forward
-            mode, held fixed in the gradient; :func:`fhnn.models.base.start_error_weighted_by`);
-            not the default (design note ``docs/design/plans.md``).
-        warmup_accept: what the warm-up's validation loss decides (0: nothing — Adam always
-            follows the warm-up). Above 0, a warm-up whose validation loss is at or below it is
-            kept and the Adam phase is skipped (the polish starts from the warm-up); a warm-up
-            above it is discarded and Adam starts from the initial model. The decision is logged
-            in the warm-up's last history record (``"warmup": "kept"`` or ``"discarded"``).
-        max_time: wall-clock budget [s] of the command that trains, compilation and every
-            member of an ensemble included (0: none): :class:`~fhnn.training.budget.Budget`. A
-            phase cut short by it says so in ``stopped``, and the next command continues it; it
-            is the command's, so a resumed run may be given another.
-        bootstrap: train on a Bayesian bootstrap of the training trajectories drawn from the
-            seed (each trajectory's windows weighted by its own random weight, see
-            :func:`bootstrap_weights`; the validation split is left whole). ``fhnn train
-            --seeds N`` sets it, so the spread of an ensemble's members holds the data's
-            sampling noise as well as that of their initialisation and batch order.
-        stop_rising: the Adam phase ends early once the validation loss has risen at this many
-            validations in a row (0: never); the polish, if any, then starts from the best model,
-            as it always does.
-    """
+    """Optimisation settings; each field is documented below it."""
 
     config_name = "training"
 
@@ -105,43 +33,109 @@ class TrainConfig(Config):
     # (the ``auto`` plan; the measurements that chose them: docs/benchmarks/plan_selection.txt).
     # A plan (fhnn.training.plans.PLANS) or the data (plans.data_settings) change named fields.
     steps: int = 20000
+    """Adam steps (0: quasi-Newton phases only)."""
     batch_size: int = 256
+    """Transition pairs per step."""
     lr: float = 3e-3
+    """Initial learning rate."""
     lr_boundaries: tuple[float, ...] = (0.4, 0.6, 0.8, 0.9)
+    """Fractions of ``steps`` at which the rate is multiplied by ``lr_decay``."""
     lr_decay: float = 0.3
+    """Factor at each boundary."""
     w_deriv: float = 1.0
+    """Weight of the derivative loss."""
     # measured derivatives make the one-step loss redundant on clean data and a noise amplifier
     # on noisy data; data without measured derivatives turn it on (plans.data_settings)
     w_step: float = 0.0
+    """Weight of the one-step loss."""
     # the flow penalty (formerly 1e-6, annealed) was within 2 % of none on the validation loss of
     # all five actuated scenarios, for 20-35 % of the training time
     lambda_flow: float = 0.0
+    """Initial weight of the flow-smoothness term."""
     flow_anneal: float = 0.5
+    """Fraction of the steps over which ``lambda_flow`` decays linearly to 0."""
     seed: int = 0
+    """Seed of initialisation and batch order (and of the weights under ``bootstrap``)."""
     val_every: int = 500
+    """Steps between validations (the best validation model is kept)."""
     val_pairs: int = 8192
+    """At most this many validation pairs are used per validation."""
     warmup_steps: int = 400
+    """Quasi-Newton iterations on the model's warm-up parameters before Adam."""
     # 20,000 Adam steps and a polish of 10,000 were chosen on the validation loss of data seed 0
     # and confirmed on seed 1: lower or tied on all six scenarios against 12,000 / 5,000
     # (docs/benchmarks/plan_selection.txt, G and K)
     lbfgs_steps: int = 10000
+    """Quasi-Newton polish iterations after Adam (0: none)."""
     track_steps: int = 0
+    """Levenberg–Marquardt iterations on the whole training tracks after Adam and the polish, from the
+    best model so far (0: none; :mod:`fhnn.training.tracks`; only for models that name their
+    :meth:`~fhnn.models.base.AbstractModel.track_parameters`)."""
     track_samples: int = 25_000
+    """The most samples (tracks × their padded length) the whole-track fit holds, on the training
+    tracks and on the validation tracks each; larger splits are cut into pieces and a seeded subset
+    kept (:func:`~fhnn.training.tracks.track_pieces`), so an iteration's cost does not grow with the
+    data."""
     # 4,000 pairs: validation loss 2.01e-9 against 1.995e-9 (solid_body_vortex) and 3.05e-7
     # against 3.18e-7 (steady_vortex) with 8,000, data seed 1, at ~0.64x the time
     lbfgs_pairs: int = 4000
+    """Training pairs (a seeded subset) in the quasi-Newton phases."""
     lbfgs_memory: int = 100
+    """Curvature pairs kept by L-BFGS."""
     warmup_accept: float = WARMUP_ACCEPT
+    """What the warm-up's validation loss decides (0: nothing — Adam always follows the warm-up).
+    Above 0, a warm-up whose validation loss is at or below it is kept and the Adam phase is skipped
+    (the polish starts from the warm-up); a warm-up above it is discarded and Adam starts from the
+    initial model. The decision is logged in the warm-up's last history record (``"warmup": "kept"``
+    or ``"discarded"``)."""
     max_time: float = 0.0
+    """Wall-clock budget [s] of the command that trains, compilation and every member of an ensemble
+    included (0: none): :class:`~fhnn.training.budget.Budget`. A phase cut short by it says so in
+    ``stopped``, and the next command continues it; it is the command's, so a resumed run may be given
+    another."""
     stop_rising: int = 6
+    """The Adam phase ends early once the validation loss has risen at this many validations in a row
+    (0: never); the polish, if any, then starts from the best model, as it always does."""
     shoot: int = 0
+    """Samples per example of the multi-step (multiple-shooting) loss on positions (0 or 2: off). With
+    ``k ≥ 3`` every example is ``k`` consecutive samples of a trajectory, each with its own times: RK4
+    from the first, one step per sample interval, and the predicted positions are compared with the
+    observed ones at every later sample — a loss that needs neither measured velocities nor
+    derivatives (``fhnn train`` turns it on for data whose velocities were estimated)."""
     w_shoot: float = 1.0
+    """Weight of the multi-step loss."""
     shoot_skip: int = 0
+    """The multi-step windows start at this sample of a trajectory or later (on both splits): a
+    smoother's velocity estimate at a trajectory's first samples sees one side of it only, and a
+    window's prediction starts from it."""
     lbfgs_stride: int = 1
+    """The quasi-Newton phases draw their ``lbfgs_pairs`` examples from the windows starting every
+    ``lbfgs_stride`` samples (from ``shoot_skip``); with the multi-step loss, ``shoot − 1`` tiles each
+    trajectory with windows that share only their end samples, so every interval of the data enters
+    the polish once."""
     lr_c_l: float = 1.0
+    """Multiplier of the learning rate of a constant linear drag (the FHNN's ``c_l_raw``; other models
+    have none) and of constant added masses (``mass_raw``, with ``added_mass="constant"``), whose
+    noisy gradients leave them near their initial values at the plain rate (design note
+    ``docs/design/plans.md``)."""
     shoot_noise: tuple[float, float] = (0.0, 0.0)
+    """``(σ_x [m], σ_v [m/s])``, the noise of the observed positions and the error of the estimated
+    velocity a multi-step window starts from ((0, 0): not modelled). With ``σ_x > 0`` the multi-step
+    loss weighs each window's position residuals ``r`` (per axis) by the inverse of their covariance
+    under those errors, ``rᵀ (I + J P Jᵀ)⁻¹ r`` with ``J = [1, t]`` (a start error's drift, free
+    flight over the window) and ``P = diag(1, σ_v²/σ_x²)``, so that the model gains nothing by damping
+    a start error it cannot see."""
     shoot_drift: str = "free"
+    """How a start error drifts in that weighting: ``"free"``, in free flight (``J = [1, t]`` per
+    axis); ``"model"``, as the model itself carries it — ``J`` the window's predicted positions'
+    derivatives with respect to its start state (forward mode, held fixed in the gradient;
+    :func:`fhnn.models.base.start_error_weighted_by`); not the default (design note
+    ``docs/design/plans.md``)."""
     bootstrap: bool = False
+    """Train on a Bayesian bootstrap of the training trajectories drawn from the seed (each
+    trajectory's windows weighted by its own random weight, see :func:`bootstrap_weights`; the
+    validation split is left whole). ``fhnn train --seeds N`` sets it, so the spread of an ensemble's
+    members holds the data's sampling noise as well as that of their initialisation and batch order."""
 
     def validate(self) -> None:
         check_positive(self, "batch_size", "lr", "lr_decay", "val_every", "val_pairs", "lbfgs_pairs")

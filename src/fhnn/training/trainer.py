@@ -2,14 +2,10 @@
 
 Loss ``L = w_deriv L_deriv + w_step L_step + λ_flow(step) L_flow``:
 
-- ``L_deriv``: MSE of ``f(s, t, F(t))`` against the stored true derivatives, per component divided
-  by the training set's standard deviation of that component (so positions, velocities and
-  accelerations weigh alike);
-- ``L_step``: MSE of one RK4 step over ``dt`` (with the exact forcing ``F(t)`` inside the step)
-  against the next observed state, per component divided by the std of the observed increments;
-- ``L_flow``: the model's regularisation (FHNN: mean ``‖Hψ‖²_F`` at the batch positions). Its
-  weight anneals linearly from ``lambda_flow`` to 0 over the first ``flow_anneal`` fraction of the
-  steps, so its bias towards zero-curvature flows (a vortex has curvature) is gone by the end.
+``L_deriv`` and ``L_step`` compare ``f(s, t, F(t))`` with the stored derivatives and one RK4 step
+with the next observed state, per component scaled by the training set's spread
+(:meth:`~fhnn.models.base.AbstractModel.loss_terms`); ``L_flow`` is the model's regularisation,
+its weight annealed linearly to 0 over the first ``flow_anneal`` fraction of the steps.
 
 Four phases:
 
@@ -28,10 +24,8 @@ Four phases:
    parameters the model names; it ends at its last iterate that forecasts the validation tracks
    (from an origin every 2 s, 1 s of history, 5 s ahead) no worse than the phase's start.
 
-The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` windows (the data
-terms, no regulariser), drawn from those starting every ``lbfgs_stride`` samples, with L-BFGS
-keeping ``lbfgs_memory`` curvature pairs. They are deterministic; a run interrupted inside one
-restarts that phase from the last checkpoint.
+The quasi-Newton phases run on a fixed, seeded subset of ``lbfgs_pairs`` windows (data terms
+only), keeping ``lbfgs_memory`` curvature pairs; a run interrupted inside one restarts it.
 """
 
 from __future__ import annotations
