@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -32,3 +33,15 @@ def seconds_per_call(fn: Callable[[], Any], repeats: int) -> float:
         out = fn()
     jax.block_until_ready(out)
     return (time.perf_counter() - t0) / repeats
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def commit() -> str:
+    """The commit of the working tree, with ``+dirty`` where ``src`` has changes."""
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], capture_output=True, text=True, cwd=ROOT).stdout.strip()
+
+    return git("rev-parse", "HEAD") + ("+dirty" if git("status", "--porcelain", "src") else "")

@@ -19,13 +19,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import subprocess
 import time
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
+from _common import commit
 
 import fhnn
 from fhnn.data.observation import observe
@@ -46,13 +46,6 @@ FRAMES = {  # name: (turn, shift, training seed)
     "translated": (np.eye(2), SHIFT, 0),
     "rotated": (TURN, SHIFT, 0),
 }
-
-
-def commit() -> str:
-    def git(*args: str) -> str:
-        return subprocess.run(["git", *args], capture_output=True, text=True, cwd=ROOT).stdout.strip()
-
-    return git("rev-parse", "HEAD") + ("+dirty" if git("status", "--porcelain", "src") else "")
 
 
 def moved(table: dict[str, np.ndarray], turn: np.ndarray, shift: np.ndarray) -> dict[str, np.ndarray]:

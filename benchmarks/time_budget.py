@@ -23,6 +23,8 @@ import sys
 import time
 from pathlib import Path
 
+from _common import commit
+
 from fhnn.data.observation import observe
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.table import write_table
@@ -30,15 +32,6 @@ from fhnn.physics.scenarios import get_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULT = ROOT / "benchmarks" / "results" / "time_budget.json"
-
-
-def commit() -> str:
-    """The commit of the working tree, with ``+dirty`` where it has changes."""
-
-    def git(*args: str) -> str:
-        return subprocess.run(["git", *args], capture_output=True, text=True, cwd=ROOT).stdout.strip()
-
-    return git("rev-parse", "HEAD") + ("+dirty" if git("status", "--porcelain", "src") else "")
 
 
 def make_table(out: Path) -> Path:

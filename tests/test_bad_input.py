@@ -109,6 +109,10 @@ def ws(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "force.csv": "t,Fx,Fy\n0,0,0\n1,0.5,0\n",
         "force_nofy.csv": "t,Fx\n0,0\n1,0.5\n",
         "force_dup.csv": "t,Fx,Fy\n0,0,0\n1,0.5,0\n1,0,0\n",
+        "force_late.csv": "t,Fx,Fy\n0.05,0,0\n1,0.5,0\n",
+        "force_short.csv": "t,Fx,Fy\n0,0,0\n0.2,0.5,0\n",
+        "force_twice.csv": "t,Fx,Fy\n0,0,0\n0.12,1,0\n0.15,2,0\n1,2,0\n",
+        "forced.csv": csv("traj_id,t,x,y,Fx,Fy", [[*r, "0", "0"] for r in rows]),
     }
     for name, text in tables.items():
         (ws / name).write_text(text)
@@ -130,6 +134,7 @@ def _snapshot(folder: Path) -> dict[str, tuple[str, int]]:
 
 S = ["simulate", "steady_vortex"]
 B = ["--mass", "10", "--area", "0.1"]
+I = ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B]
 T = ["train", "{ws}/d.h5"]
 P = ["predict", "{ws}/run", "--duration", "1", "--initial", "0,1,0,0"]
 #: (arguments — ``{ws}`` is the workspace —, text the one-line message must contain)
@@ -278,6 +283,26 @@ CASES = [
     (
         ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--outliers", "none"],
         "--outliers must be off or a number of noise levels > 0, got 'none'",
+    ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--forcing-hold", "step"],
+        "--forcing-hold must be one of linear, previous, got 'step'",
+    ),
+    (
+        ["import", "{ws}/forced.csv", "-o", "{ws}/i.h5", *B, "--forcing", "{ws}/force.csv"],
+        "the table has Fx, Fy columns: give the known forces there or in --forcing, not both",
+    ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--forcing", "{ws}/force_late.csv"],
+        "the forcing table starts at 0.05 s, after the first sample of trajectory '0' (0 s)",
+    ),
+    (
+        ["import", "{ws}/good.csv", "-o", "{ws}/i.h5", *B, "--forcing", "{ws}/force_short.csv"],
+        "the forcing table ends at 0.2 s, before the last sample of trajectory '0' (0.3 s)",
+    ),
+    (
+        [*I, "--forcing", "{ws}/force_twice.csv", "--forcing-hold", "previous"],
+        "the held force changes more than once between the samples at 0.1 and 0.2 s of trajectory '0'",
     ),
     (["predict", "{ws}/run", "--duration", "1"], "give --initial x,y,vx,vy or --history TABLE"),
     ([*P, "--history", "{ws}/good.csv"], "give --initial x,y,vx,vy or --history TABLE"),

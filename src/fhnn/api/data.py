@@ -13,11 +13,12 @@ from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsed
 
 from fhnn.api.report import Reporter, fault_point, reporter
 from fhnn.data.cleaning import OUTLIER_SIGMAS, parse_max_gap, parse_outliers
+from fhnn.data.clock import SECONDS_ONLY
 from fhnn.data.conversion import ImportSettings, parse_split, table_to_dataset
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.data.summary import summarize
-from fhnn.data.table import parse_columns, read_table
+from fhnn.data.table import parse_columns, read_forcing, read_table
 from fhnn.files import check_output_path
 from fhnn.physics.scenarios import Scenario, scenario_class
 
@@ -93,30 +94,31 @@ def import_table(
     outliers: str | float | None = OUTLIER_SIGMAS,
     columns: Mapping[str, str] | str | None = None,
     time_unit: str = "s",
+    forcing: Any = None,
+    forcing_hold: str = "linear",
 ) -> Dataset:
     """A data set from a table of measured trajectories, as ``fhnn import`` makes it.
 
     Args:
         table: a .csv or .parquet path, or a ``pandas.DataFrame``, with columns ``traj_id, t, x,
-            y[, vx, vy][, Fx, Fy]`` [–, s, m, m, m/s, m/s, N, N]; ``t`` in seconds or ISO-8601
-            date-times.
+            y[, vx, vy][, Fx, Fy]`` [–, s, m, m/s, N]; ``t`` in seconds or ISO-8601 date-times.
         output: also write the data set here (HDF5).
-        mass: the body's dry mass M [kg].
-        area: its reference area A [m²].
-        rho: the fluid's density [kg/m³].
-        volume: the displaced volume V [m³] (default M / rho).
-        split: percent of trajectories for train/val/test (``"70/20/10"``) or fractions.
-        seed: seed of the split's permutation.
-        time_dependent: let models learn a flow that changes in time.
-        smoother: velocity estimator where the table has none: ``"spline"``, ``"kalman"``, ``"auto"``.
+        mass, area, rho, volume: the body's dry mass M [kg], reference area A [m²], the fluid's
+            density [kg/m³] and the displaced volume V [m³] (default M / rho).
+        split, seed: percent of trajectories for train/val/test (``"70/20/10"``) or fractions,
+            and the seed of the split's permutation.
+        time_dependent, smoother: let models learn a flow that changes in time; the velocity
+            estimator where the table has none (``"spline"``, ``"kalman"``, ``"auto"``).
         max_gap: split a trajectory where samples are more than this many seconds apart
             (``"auto"``: more than 10× its median step; ``"inf"``: never).
-        outliers: drop a position more than this many noise levels off its neighbours' cubic
-            (``"off"`` or ``None``: keep every sample).
+        outliers: drop a position this many noise levels off its neighbours' cubic (or ``None``).
         columns: the table's names of our columns where they differ, e.g. ``{"traj_id": "track",
-            "t": "time", "x": "pos_x"}`` or ``"traj_id=track,t=time,x=pos_x"``.
-        time_unit: the unit of numeric times (``"s"``, ``"ms"``, ``"us"``, ``"min"``, ``"h"``),
-            read as seconds.
+            "t": "time"}`` or ``"traj_id=track,t=time"``.
+        time_unit: the unit of numeric times (``"s"``, ``"ms"``, ``"us"``, ``"min"``, ``"h"``).
+        forcing, forcing_hold: known forces as a separate table (path or DataFrame, ``t, Fx,
+            Fy[, traj_id]`` [s, N] on the table's clock) instead of ``Fx, Fy`` columns, read
+            ``"linear"`` (interpolated) or ``"previous"`` (held until the next row; the change
+            times are kept for training and evaluation).
 
     Returns:
         The :class:`~fhnn.data.dataset.Dataset`.
@@ -137,12 +139,17 @@ def import_table(
         smoother=smoother,
         max_gap=parse_max_gap(str(max_gap)),
         outlier_sigmas=parse_outliers(str(outliers)) if outliers is not None else None,
+        forcing_hold=forcing_hold,
     )
     if output is not None:
         check_output_path(Path(output))
     source = Path(table).name if isinstance(table, str | os.PathLike) else "DataFrame"
     read = read_table(table, columns=mapping, time_unit=time_unit)
-    dataset = table_to_dataset(read, settings, source=source, time_unit=time_unit)
+    forces = None
+    if forcing is not None:
+        origin = SECONDS_ONLY if read.time_origin is None else read.time_origin
+        forces = read_forcing(forcing, origin, mapping, time_unit)
+    dataset = table_to_dataset(read, settings, source=source, time_unit=time_unit, forcing=forces)
     for text in dataset.extra["import"]["warnings"]:
         warnings.warn(text, UserWarning, stacklevel=2)
     if output is not None:

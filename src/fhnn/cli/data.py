@@ -13,7 +13,7 @@ from fhnn.api.data import import_table as import_data
 from fhnn.api.data import info as data_info
 from fhnn.api.data import simulate as simulate_data
 from fhnn.cli import render
-from fhnn.cli.options import ColumnsOption, TimeUnitOption, app
+from fhnn.cli.options import ColumnsOption, ForcingHoldOption, TimeUnitOption, app
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
 from fhnn.data.derivatives import AUTO_SPLINE_ROWS
 from fhnn.physics.scenarios import SCENARIOS, UNITS
@@ -128,6 +128,15 @@ def import_table(
     ] = f"{OUTLIER_SIGMAS:g}",
     columns: ColumnsOption = None,
     time_unit: TimeUnitOption = "s",
+    forcing: Annotated[
+        Path | None,
+        typer.Option(
+            "--forcing",
+            help="Known forces as a separate table (.csv/.parquet: t, Fx, Fy[, traj_id]) on the "
+            "table's clock, e.g. each time a thruster switches (the table then has no Fx, Fy).",
+        ),
+    ] = None,
+    forcing_hold: ForcingHoldOption = "linear",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
     """Import measured trajectories from a table into a data set: rows in any order, irregular times,
@@ -152,6 +161,8 @@ def import_table(
             outliers=outliers,
             columns=columns,
             time_unit=time_unit,
+            forcing=forcing,
+            forcing_hold=forcing_hold,
         )
     for warning in caught:
         render.note(f"warning: {warning.message}")

@@ -13,7 +13,14 @@ from rich.table import Table
 from fhnn.api.evaluate import evaluate as evaluate_fit
 from fhnn.api.predict import predict as predict_fit
 from fhnn.cli import render
-from fhnn.cli.options import ColumnsOption, DataArgument, RunDirArgument, TimeUnitOption, app
+from fhnn.cli.options import (
+    ColumnsOption,
+    DataArgument,
+    ForcingHoldOption,
+    RunDirArgument,
+    TimeUnitOption,
+    app,
+)
 from fhnn.data.cleaning import OUTLIER_SIGMAS, parse_outliers
 from fhnn.errors import ConfigError
 from fhnn.evaluation.metrics import METRICS
@@ -107,14 +114,7 @@ def predict(
             help="Known forces over the forecast (.csv/.parquet: t, Fx, Fy[, traj_id]) [default: none].",
         ),
     ] = None,
-    forcing_hold: Annotated[
-        str,
-        typer.Option(
-            "--forcing-hold",
-            help="How --forcing reads between its rows: linear (interpolated) or previous (each row's "
-            "force held until the next row, as thrusters that switch at the rows' times).",
-        ),
-    ] = "linear",
+    forcing_hold: ForcingHoldOption = "linear",
     dt: Annotated[
         float | None,
         typer.Option("--dt", help="Output step in seconds [default: the history's median step, or 0.05]."),

@@ -91,3 +91,13 @@ TimeUnitOption = Annotated[
         help="Unit of the table's numeric times: s, ms, us, min or h (read as seconds).",
     ),
 ]
+
+#: ``--forcing-hold`` of import and predict.
+ForcingHoldOption = Annotated[
+    str,
+    typer.Option(
+        "--forcing-hold",
+        help="How --forcing reads between its rows: linear (interpolated) or previous (each row's "
+        "force held until the next row, as thrusters that switch at the rows' times).",
+    ),
+]

@@ -68,6 +68,14 @@ def _imported(record: dict[str, Any], body: dict[str, Any]) -> None:
             soft_wrap=True,
             highlight=False,
         )
+    forcing = record.get("forcing")
+    if forcing:
+        how = (
+            "each row held until the next (the change times kept for training and evaluation)"
+            if forcing["hold"] == "previous"
+            else "interpolated at the samples"
+        )
+        stdout.print(f"forcing: {forcing['rows']} rows of a separate table, {how}", highlight=False)
     if record.get("outliers_dropped"):
         stdout.print(
             f"outliers: {record['outliers_dropped']} position(s) in {record['outlier_trajectories']} "

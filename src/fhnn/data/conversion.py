@@ -8,9 +8,9 @@ import dataclasses
 import numpy as np
 
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS, split_at_gaps, without_outliers
-from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split
+from fhnn.data.dataset import IMPORTED, SPLITS, Dataset, Split, within_intervals
 from fhnn.data.derivatives import AUTO, choose_smoother, derivative_error, noise_level, smooth_derivatives
-from fhnn.data.table import MIN_SAMPLES, PAD_STEP, Table, Trajectory, position_series
+from fhnn.data.table import MIN_SAMPLES, PAD_STEP, Table, Trajectory, check_forcing_hold, position_series
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.runtime import __version__
 
@@ -37,6 +37,9 @@ class ImportSettings:
             the track's median step apart (:func:`split_at_gaps`).
         outlier_sigmas: a position more than this many noise levels from the cubic through its
             neighbours is dropped as a glitch (:func:`drop_outliers`); ``None``: every sample kept.
+        forcing_hold: how a separate forcing table reads between its rows: ``"linear"``
+            (interpolated at the samples) or ``"previous"`` (each row's force held until the next
+            row: the change times are kept, :attr:`~fhnn.data.dataset.Split.switch`).
     """
 
     mass: float
@@ -49,9 +52,11 @@ class ImportSettings:
     smoother: str = AUTO
     max_gap: float | None = None
     outlier_sigmas: float | None = OUTLIER_SIGMAS
+    forcing_hold: str = "linear"
 
     def __post_init__(self) -> None:
         choose_smoother(self.smoother, 0)  # an unknown name is refused here
+        check_forcing_hold(self.forcing_hold)
         if self.outlier_sigmas is not None and not (self.outlier_sigmas > 0):
             raise ConfigError(f"--outliers must be a number > 0 (or off), got {self.outlier_sigmas!r}")
         if self.max_gap is not None and not (self.max_gap > 0):
@@ -134,18 +139,36 @@ def _split_of(items: list[dict[str, np.ndarray]]) -> Split:
         forces=stack("forces"),
         actuation=np.zeros((len(items), 2, 3, 3)),
         lengths=lengths,
+        switch=within_intervals(t, stack("switch")) if "switch" in items[0] else None,
     )
 
 
 def table_to_dataset(
-    table: Table, settings: ImportSettings, source: str = "", *, time_unit: str = "s"
+    table: Table,
+    settings: ImportSettings,
+    source: str = "",
+    *,
+    time_unit: str = "s",
+    forcing: dict[str | None, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> Dataset:
     """A data set of ``table``'s trajectories (see the module docstring).
 
     Times are shifted so that the earliest sample of the table is at ``t = 0`` (the shift is kept
     in the ``import`` record); ``states_clean`` holds the observed states (the truth is unknown),
-    ``derivs`` the estimated ``(vx, vy, ax, ay)``.
+    ``derivs`` the estimated ``(vx, vy, ax, ay)``. ``forcing``: the known forces as a separate
+    table on the table's clock (:func:`~fhnn.data.table.read_forcing`; a table with ``Fx, Fy``
+    columns takes none), read at the samples as ``settings.forcing_hold`` says
+    (:func:`forcing_at_samples`).
+
+    Raises:
+        ConfigError: forces both in the table and in ``forcing``.
+        DataFormatError: too few trajectories, non-finite velocity estimates, or a forcing table
+            that misses a trajectory or changes more than once between two held samples.
     """
+    if forcing is not None and table.trajectories[0].force is not None:
+        raise ConfigError(
+            "the table has Fx, Fy columns: give the known forces there or in --forcing, not both"
+        )
     cut = split_at_gaps(table.trajectories, settings.max_gap)
     trajs = cut.pieces
     kept = int(np.unique(cut.track).size)
@@ -156,7 +179,7 @@ def table_to_dataset(
             f"{MIN_SAMPLES} samples between gaps longer than --max-gap; train, val and test need at least 3"
         )
     has_vel = trajs[0].vel is not None
-    has_force = trajs[0].force is not None
+    has_force = trajs[0].force is not None or forcing is not None
     t0 = min(float(tr.t[0]) for tr in trajs)
     glitches: list[tuple[str, float]] = []
     trajs, pos_noise, outliers, touched = without_outliers(trajs, settings.outlier_sigmas, glitches)
@@ -171,6 +194,7 @@ def table_to_dataset(
         rates = smooth_derivatives(series, pos_noise, smoother)
         vel_error = derivative_error(series, pos_noise, smoother, seed=settings.seed)
     items = []
+    held = forcing is not None and settings.forcing_hold == "previous"
     for i, tr in enumerate(trajs):
         vel = np.empty_like(tr.pos)
         acc = np.empty_like(tr.pos)
@@ -180,14 +204,21 @@ def table_to_dataset(
                 vel[:, k], acc[:, k] = tr.vel[:, k], first
             else:
                 vel[:, k], acc[:, k] = first, second
-        items.append(
-            {
-                "t": tr.t - t0,
-                "states": np.concatenate([tr.pos, vel], axis=1),
-                "derivs": np.concatenate([vel, acc], axis=1),
-                "forces": tr.force if has_force else np.zeros_like(tr.pos),
-            }
-        )
+        item = {
+            "t": tr.t - t0,
+            "states": np.concatenate([tr.pos, vel], axis=1),
+            "derivs": np.concatenate([vel, acc], axis=1),
+            "forces": tr.force if tr.force is not None else np.zeros_like(tr.pos),
+        }
+        if forcing is not None:
+            track = table.trajectories[cut.track[i]].traj_id
+            rows = forcing.get(track, forcing.get(None))
+            if rows is None:
+                raise DataFormatError(f"the forcing table has no rows for trajectory {track!r}")
+            item["forces"], switch = forcing_at_samples(tr.t, rows, settings.forcing_hold, tr.traj_id)
+            if held:
+                item["switch"] = switch - t0
+        items.append(item)
     bad = [
         tr.traj_id for tr, item in zip(trajs, items, strict=True) if not np.all(np.isfinite(item["derivs"]))
     ]
@@ -239,6 +270,7 @@ def table_to_dataset(
         "step_range": [float(steps.min()), float(steps.max())],
         "traj_ids": ids,
         "warnings": warnings,
+        "forcing": None if forcing is None else {"hold": settings.forcing_hold, "rows": _rows(forcing)},
     }
     return Dataset(
         scenario=IMPORTED,
@@ -252,6 +284,65 @@ def table_to_dataset(
         splits=splits,
         extra={"measured": measured, "import": record},
     )
+
+
+def _rows(forcing: dict[str | None, tuple[np.ndarray, np.ndarray]]) -> int:
+    return int(sum(t.size for t, _ in forcing.values()))
+
+
+def forcing_at_samples(
+    t: np.ndarray, rows: tuple[np.ndarray, np.ndarray], hold: str, name: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """A forcing table's forces at a trajectory's samples.
+
+    Args:
+        t: the trajectory's sample times [s], shape ``(n,)``, on the table's clock.
+        rows: the forcing rows' times [s] ``(m,)`` (increasing) and forces [N] ``(m, 2)``.
+        hold: ``"linear"``: the forces interpolated at ``t`` (the rows must span the samples);
+            ``"previous"``: each row's force held until the next row (a row at or before the
+            first sample is needed).
+        name: the trajectory's id, for errors.
+
+    Returns:
+        ``(forces (n, 2), switch (n,))``: the force in effect at each sample and, for each
+        interval ``k``, when inside it the held force changes (``t[k + 1]`` where it changes at
+        the next sample or not at all; :attr:`~fhnn.data.dataset.Split.switch`; unread under
+        ``"linear"``).
+
+    Raises:
+        DataFormatError: rows that do not cover the trajectory, or a held force that changes more
+            than once between two samples.
+    """
+    tf, force = rows
+    switch = np.r_[t[1:], t[-1]]
+    if tf[0] > t[0]:
+        raise DataFormatError(
+            f"the forcing table starts at {tf[0]:g} s, after the first sample of trajectory {name!r} "
+            f"({t[0]:g} s)"
+        )
+    if hold == "linear":
+        if tf[-1] < t[-1]:
+            raise DataFormatError(
+                f"the forcing table ends at {tf[-1]:g} s, before the last sample of trajectory {name!r} "
+                f"({t[-1]:g} s); --forcing-hold previous holds its last row"
+            )
+        return np.stack([np.interp(t, tf, force[:, 0]), np.interp(t, tf, force[:, 1])], axis=1), switch
+    at_samples = force[np.searchsorted(tf, t, side="right") - 1]
+    changes = tf[np.flatnonzero(np.any(force[1:] != force[:-1], axis=1)) + 1]
+    k = np.searchsorted(t, changes, side="left") - 1  # t[k] < change <= t[k + 1]
+    inside = (k >= 0) & (k < t.size - 1)
+    inside[inside] &= changes[inside] < t[k[inside] + 1]  # a change at a sample is at the sample
+    k, changes = k[inside], changes[inside]
+    twice = np.flatnonzero(np.diff(k) == 0)
+    if twice.size:
+        j = int(k[twice[0]])
+        raise DataFormatError(
+            f"the held force changes more than once between the samples at {t[j]:g} and {t[j + 1]:g} s "
+            f"of trajectory {name!r}; held forcing takes one change per sample interval "
+            "(or use --forcing-hold linear)"
+        )
+    switch[k] = changes
+    return at_samples, switch
 
 
 #: A median step [s] above which, with a median speed below :data:`SLOW_SPEED` [m/s], the times

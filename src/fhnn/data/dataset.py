@@ -12,6 +12,8 @@ File layout (``format = "fhnn-trajectories"``, ``format_version = 2``)::
     /{train,val,test}/derivs        (N, T, 4)    true ds/dt at the clean states
     /{train,val,test}/forces        (N, T, 2)    F_ext at each sample time [N]
     /{train,val,test}/actuation     (N, 2, 3, 3) per axis and mode: (amplitude, frequency, phase)
+    /{train,val,test}/switch        (N, T)       optional: held forcing's change time in each
+                                                 sample interval [s] (Split.switch)
 
 Version 2 adds what imported measurements need (version 1 files, written before, are read as
 they are): per-trajectory times ``t`` of shape ``(N, T)`` and ``lengths`` for trajectories of
@@ -89,6 +91,10 @@ class Split:
         actuation: forcing parameters, shape ``(N, 2, 3, 3)``.
         lengths: samples of each trajectory, shape ``(N,)``, or ``None``: all ``T``. The samples
             past a trajectory's length are padding (see the module docstring).
+        switch: ``None`` (the forcing is interpolated linearly between samples), or held
+            forcing: the force is ``forces[:, k]`` from sample ``k`` up to ``switch[:, k]`` [s] and
+            ``forces[:, k + 1]`` from there to sample ``k + 1`` (``t[k] ≤ switch[k] ≤ t[k + 1]``;
+            the last entry and padding: the sample's own time), shape ``(N, T)``.
     """
 
     t: np.ndarray
@@ -98,6 +104,7 @@ class Split:
     forces: np.ndarray
     actuation: np.ndarray
     lengths: np.ndarray | None = None
+    switch: np.ndarray | None = None
 
     @property
     def n_traj(self) -> int:
@@ -144,6 +151,8 @@ class Split:
         out = {name: getattr(self, name) for name in ARRAYS}
         if self.lengths is not None:
             out["lengths"] = np.asarray(self.lengths)
+        if self.switch is not None:
+            out["switch"] = np.asarray(self.switch)
         return out
 
     def subset(self, index: Any) -> Split:
@@ -418,6 +427,9 @@ def _read_split(path: Path, f: h5py.File, name: str) -> Split:
         if np.any(lengths < 2) or np.any(lengths > T):
             raise DataFormatError(f"{path}: /{name}/lengths must lie in [2, {T}]")
         arrays["lengths"] = lengths.astype(np.int64)
+    if "switch" in group:
+        arrays["switch"] = np.asarray(group["switch"][()], dtype=np.float64)
+        expected["switch"] = (n, T)
     for key, shape in expected.items():
         if arrays[key].shape != shape:
             raise DataFormatError(f"{path}: /{name}/{key} has shape {arrays[key].shape}, expected {shape}")
@@ -428,8 +440,31 @@ def _read_split(path: Path, f: h5py.File, name: str) -> Split:
     if np.any(np.diff(t, axis=-1) <= 0):
         raise DataFormatError(f"{path}: /{name}/t is not strictly increasing")
     split = Split(**arrays)
+    _check_switch(split, f"{path}: /{name}/switch")
     check_forcing(split, f"{path}: /{name}")
     return split
+
+
+def _check_switch(split: Split, where: str) -> None:
+    """Raise :class:`DataFormatError` if a held forcing's change time lies outside its interval."""
+    if split.switch is None:
+        return
+    times, switch = split.times, split.switch
+    off = ((switch[:, :-1] < times[:, :-1]) | (switch[:, :-1] > times[:, 1:])) & split.mask[:, 1:]
+    if np.any(off):
+        i, k = np.argwhere(off)[0]
+        raise DataFormatError(
+            f"{where} of trajectory {i} is {switch[i, k]:g} s, outside its sample interval "
+            f"[{times[i, k]:g}, {times[i, k + 1]:g}] s"
+        )
+
+
+def within_intervals(times: np.ndarray, switch: np.ndarray) -> np.ndarray:
+    """``switch`` ``(N, T)`` clipped into each sample interval ``[t[k], t[k + 1]]`` of ``times``
+    ``(N, T)`` (the last entry to its own time): what padding repeated from a real sample
+    becomes (no change inside a padded interval)."""
+    upper = np.concatenate([times[:, 1:], times[:, -1:]], axis=1)
+    return np.clip(switch, times, upper)
 
 
 def check_forcing(split: Split, where: str) -> None:

@@ -16,23 +16,14 @@ The table has one row per sample, in any order, with the columns (SI units throu
 A CSV file's columns may be separated by commas, semicolons or tabs (whichever its header line
 uses most), and spaces around the header's names are ignored.
 
-Rows with a missing value (an empty cell or NaN) in any column present are gaps: they are dropped
-and counted. A track with an outage — two samples further apart than ``--max-gap`` — becomes
-pieces (:func:`~fhnn.data.cleaning.split_at_gaps`), and a position far from the cubic through its
-neighbours — a tracker's glitch, ``--outliers`` — is dropped and counted
-(:func:`~fhnn.data.cleaning.drop_outliers`). Any other problem — a missing or unknown column, a
-non-numeric or infinite value, two rows of one trajectory at the same time, a trajectory with fewer
-than :data:`MIN_SAMPLES` samples — is a :class:`~fhnn.errors.DataFormatError` naming the column,
-the trajectory and the row (the row number counts data rows from 1, the header not included).
-
-Velocities absent from the table, and every acceleration, are estimated
-(:mod:`fhnn.data.derivatives`: by default a smoothing spline, the Kalman smoother above 200,000
-rows, held to the noise level the positions show), and the estimated velocities' RMS error is
-kept beside the noise level in the import record (``velocity_error``, a parametric bootstrap of
-the smoother: :func:`~fhnn.data.derivatives.derivative_error`); the data
-set's ``measured`` attribute says which fields were measured, and training then leaves out the
-derivative loss (whose targets would be estimates). Trajectories are split into train, val and
-test by a seeded permutation.
+Rows with a missing value (an empty cell or NaN) in any column present are gaps, dropped and
+counted; outages and glitches are handled by :mod:`fhnn.data.cleaning`. Any other problem — a
+missing or unknown column, a non-numeric or infinite value, two rows of one trajectory at the same
+time, a trajectory with fewer than :data:`MIN_SAMPLES` samples — is a
+:class:`~fhnn.errors.DataFormatError` naming the column, the trajectory and the row (data rows
+counted from 1). Known forces may instead come as a table of their own (:func:`read_forcing`).
+What the table lacks is estimated (:mod:`fhnn.data.derivatives`) when it becomes a data set
+(:mod:`fhnn.data.conversion`).
 """
 
 from __future__ import annotations
@@ -48,6 +39,7 @@ import numpy as np
 from fhnn.data.clock import DATE, SECONDS_ONLY, ZONE, date_time, origin_ns
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import atomic_output, check_input_file
+from fhnn.physics.actuation import STEP_WIDTH
 
 REQUIRED = ("traj_id", "t", "x", "y")
 OPTIONAL_PAIRS = (("vx", "vy"), ("Fx", "Fy"))
@@ -502,8 +494,6 @@ def read_forcing(
 
 #: How a forcing table's forces are read between its rows (``fhnn predict --forcing-hold``).
 FORCING_HOLDS = ("linear", "previous")
-#: The width [s] of the ramp that stands for a step in a held forcing table's linear interpolant.
-STEP_WIDTH = 1e-6
 
 
 def held(
@@ -512,8 +502,8 @@ def held(
     """A forcing table (as :func:`read_forcing` returns it) read as ``hold`` says: ``"linear"``
     between rows (unchanged), or ``"previous"``: each row's force held until the next row, as
     thrusters that switch at the rows' times do. A held table is returned as rows whose linear
-    interpolant is that step function: before each row's time a row :data:`STEP_WIDTH` s earlier
-    with the previous force.
+    interpolant is that step function: before each row's time a row
+    :data:`~fhnn.physics.actuation.STEP_WIDTH` s earlier with the previous force.
 
     Raises:
         ConfigError: an unknown ``hold``.

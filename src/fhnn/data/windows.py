@@ -28,7 +28,9 @@ class Windows:
     ``act`` ``(P, 2, 3, 3)``; ``traj`` ``(P,)`` (index of the trajectory in its split); ``dforce``
     ``(P, W, 2)``: the recorded forces less the sinusoids of ``act``
     (:attr:`~fhnn.data.dataset.Split.force_residual`); ``start`` ``(P,)``: the sample of its
-    trajectory each window starts at (not passed to a model). ``W = 2`` gives transition pairs.
+    trajectory each window starts at (not passed to a model); ``switch`` ``(P, W)`` [s]: held
+    forcing's change time in each interval (:attr:`~fhnn.data.dataset.Split.switch`), ``None``
+    where the forcing is interpolated. ``W = 2`` gives transition pairs.
     """
 
     s: np.ndarray
@@ -39,10 +41,11 @@ class Windows:
     traj: np.ndarray
     dforce: np.ndarray
     start: np.ndarray
+    switch: np.ndarray | None = None
 
-    #: The fields a model's loss reads (:meth:`as_jax`).
+    #: The fields a model's loss reads (:meth:`as_jax`; ``switch`` too where it is given).
     BATCH_FIELDS = ("s", "t", "deriv", "forces", "act", "traj", "dforce")
-    FIELDS = (*BATCH_FIELDS, "start")
+    FIELDS = (*BATCH_FIELDS, "start", "switch")
 
     @staticmethod
     def check(split: Split, window: int = 2, *, skip: int = 0) -> None:
@@ -89,16 +92,20 @@ class Windows:
             traj=np.repeat(np.arange(n), starts.size)[keep],
             dforce=cut(split.force_residual),
             start=np.tile(starts, n)[keep],
+            switch=None if split.switch is None else cut(split.switch),
         )
 
     def __len__(self) -> int:
         return int(self.s.shape[0])
 
     def subset(self, idx: np.ndarray) -> Windows:
-        return Windows(*(getattr(self, k)[idx] for k in self.FIELDS))
+        return Windows(*(None if getattr(self, k) is None else getattr(self, k)[idx] for k in self.FIELDS))
 
     def as_jax(self) -> dict[str, Array]:
-        return {k: jnp.asarray(getattr(self, k)) for k in self.BATCH_FIELDS}
+        out = {k: jnp.asarray(getattr(self, k)) for k in self.BATCH_FIELDS}
+        if self.switch is not None:
+            out["switch"] = jnp.asarray(self.switch)
+        return out
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from fhnn.data.table import PAD_STEP, Table, Trajectory
 from fhnn.errors import ConfigError
 from fhnn.executables import StoredProgram
 from fhnn.models.base import ROLLOUT_TOL, AbstractVectorField
-from fhnn.physics.actuation import forcing, no_actuation
+from fhnn.physics.actuation import forcing, held_grid, no_actuation
 from fhnn.physics.integrators import rk4_solve
 
 Array = jax.Array
@@ -535,7 +535,8 @@ class BandCheck:
 
 def band_tracks(split: Any, ids: list[str], history: float, horizon: float) -> tuple[Table, dict, list]:
     """The tracks of ``split`` (ids ``ids``) long enough for a check: the first ``history`` s of
-    each as a :class:`~fhnn.data.table.Table`, its forces over the whole track as a forcing table,
+    each as a :class:`~fhnn.data.table.Table`, its forces over the whole track as a forcing table
+    (held forcing as knots whose interpolant is the step, :func:`~fhnn.physics.actuation.held_grid`),
     and each track's observed ``(t, positions)`` after the history up to ``horizon`` s."""
     trajectories, forcing_rows, later = [], {}, []
     for i, traj in enumerate(ids):
@@ -545,8 +546,13 @@ def band_tracks(split: Any, ids: list[str], history: float, horizon: float) -> t
         if t[-1] - t[0] < history + horizon:
             continue
         early = t <= t[0] + history
-        trajectories.append(Trajectory(traj, t[early], pos[early], None, force[early]))
-        forcing_rows[traj] = (t, force)
+        if split.switch is None:
+            trajectories.append(Trajectory(traj, t[early], pos[early], None, force[early]))
+            forcing_rows[traj] = (t, force)
+        else:  # held forcing: knots whose interpolant is the step, for the fit and the forecast
+            grid, values, _ = held_grid(t[None], force[None], split.switch[i][m][None])
+            trajectories.append(Trajectory(traj, t[early], pos[early], None, None))
+            forcing_rows[traj] = (grid[0], values[0])
         after = (t > t[0] + history) & (t <= t[0] + history + horizon)
         later.append((t[after], pos[after]))
     table = Table(trajectories, sum(tr.t.size for tr in trajectories), 0)

@@ -31,8 +31,8 @@ import numpy as np
 
 from fhnn.data.dataset import Split, samples_until
 from fhnn.executables import StoredProgram
-from fhnn.physics.actuation import forcing
-from fhnn.physics.integrators import rk4_solve, rk4_step, solve_forced_batch
+from fhnn.physics.actuation import actuation_force, forcing, held_grid
+from fhnn.physics.integrators import rk4_solve, rk4_solve_held, rk4_step, solve_forced_batch
 
 Array = jax.Array
 
@@ -222,19 +222,29 @@ class AbstractVectorField(AbstractModel):
         # component (start_error_weighted_by), the free flight's where per axis
         sensitive = width > 2 and batch.get("start_var") is not None and batch["start_var"].shape[-1] == 4
 
-        def one(s: Array, t: Array, a: Array, r: Array) -> tuple[Array, Array, Array | None]:
+        held = "switch" in batch  # held forcing: RK4 steps split where the force changes
+
+        def one(s: Array, t: Array, a: Array, r: Array, sw: Array) -> tuple[Array, Array, Array | None]:
             f = lambda x, tt: self(x, tt, forcing(a, tt, t, r))  # noqa: E731
             d0 = f(s[0], t[0])
-            if width == 2:
+            if held:
+                fu = lambda x, tt, u: self(x, tt, actuation_force(a, tt) + u)  # noqa: E731
+                solve = lambda x: rk4_solve_held(fu, x, t, r, sw)  # noqa: E731
+            elif width == 2:
                 return d0, rk4_step(f, s[0], t[0], t[1] - t[0], k1=d0)[None], None
-            path = rk4_solve(f, s[0], t)[1:]
+            else:
+                solve = lambda x: rk4_solve(f, x, t)  # noqa: E731
+            path = solve(s[0])[1:]
             if not sensitive:
                 return d0, path, None
             # held fixed in the gradient: the weights of generalised least squares, not a term
-            jac = jax.jacfwd(lambda x: rk4_solve(f, x, t)[1:, :2])(jax.lax.stop_gradient(s[0]))
+            jac = jax.jacfwd(lambda x: solve(x)[1:, :2])(jax.lax.stop_gradient(s[0]))
             return d0, path, jax.lax.stop_gradient(jac)
 
-        pred_d, pred_path, start_jac = jax.vmap(one)(batch["s"], batch["t"], batch["act"], batch["dforce"])
+        switch = batch["switch"] if held else batch["t"]  # unread where the forcing is interpolated
+        pred_d, pred_path, start_jac = jax.vmap(one)(
+            batch["s"], batch["t"], batch["act"], batch["dforce"], switch
+        )
         weight = batch.get("weight")
         if weight is None:
             mean = jnp.mean
@@ -265,9 +275,18 @@ class AbstractVectorField(AbstractModel):
         self, start: np.ndarray, split: Split, t: np.ndarray, rtol: float, atol: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """Adaptive Dopri8 from ``start[:, 0]`` whose steps land on every sample time (no
-        interpolation error). A state beyond :data:`BLOW_UP` times the initial scale, or running
-        out of :data:`STEPS_PER_SAMPLE` steps per interval, fails the trajectory."""
-        return self.solve(start[:, 0], t, split.actuation, split.force_residual[:, : t.shape[-1]], rtol, atol)
+        interpolation error) and, under held forcing, on each change of the force
+        (:func:`~fhnn.physics.actuation.held_grid`). A state beyond :data:`BLOW_UP` times the
+        initial scale, or running out of :data:`STEPS_PER_SAMPLE` steps per interval, fails the
+        trajectory."""
+        size = t.shape[-1]
+        residual = split.force_residual[:, :size]
+        if split.switch is None:
+            return self.solve(start[:, 0], t, split.actuation, residual, rtol, atol)
+        times = np.broadcast_to(t, (split.n_traj, size))
+        grid, values, picks = held_grid(times, residual, split.switch[:, :size])
+        states, ok = self.solve(start[:, 0], grid, split.actuation, values, rtol, atol)
+        return np.take_along_axis(states, picks[..., None], axis=1), ok
 
     def solve(
         self,

@@ -1,13 +1,13 @@
 """Time integration of ``ṡ = f(s, t)``.
 
 - :func:`rk4_step` / :func:`rk4_solve`: the classical fixed-step fourth-order Runge–Kutta method,
-  used by training (one step over the sampling interval).
+  used by training (one step over the sampling interval); :func:`rk4_solve_held` splits each
+  step where a held (step-wise) force changes.
 - :func:`adaptive_solve`: Dormand–Prince 8(5,3) with adaptive steps (via Diffrax), used for ground
   truth and for evaluation rollouts. By default outputs between steps come from its dense output;
   ``dense=False`` clips steps to land on every output time instead (exact step ends, about 4× the
-  steps at dt = 0.05 s). Measured on ``steady_vortex`` with actuation over 20 s against a scipy
-  DOP853 solve at 1e-13: dense output at tolerance 1e-10 → 2e-9 m real error, 1e-11 → 4e-10,
-  1e-12 → 6e-11 (default); clipped steps at 1e-10 → 7e-12.
+  steps at dt = 0.05 s). Against a scipy DOP853 solve at 1e-13 (``steady_vortex``, 20 s), the
+  default tolerance 1e-12 errs by 6e-11 m with dense output; clipped steps at 1e-10 by 7e-12.
 
 ``f`` is any callable ``f(s, t) -> ṡ`` on one state; batch with :func:`jax.vmap`.
 :func:`solve_forced_batch` integrates many forced trajectories at once (simulation and rollouts).
@@ -33,10 +33,8 @@ def rk4_step(f: VectorField, s: Array, t: Array, dt: Array, k1: Array | None = N
     """One classical RK4 step of size ``dt`` from ``(s, t)``; ``k1``: ``f(s, t)`` when the caller
     has it already (a loss on both ``f(s, t)`` and the step then traces ``f`` there once).
 
-    The four stages stay unrolled: a ``lax.scan`` over stages 2–4 was measured
-    (``benchmarks/training_speed.py``) to compile the Adam step only 4 % faster (6.49 s against
-    6.75 s) but to run it 22 % slower without the flow penalty (10.9 against 8.9 ms), as XLA no
-    longer fuses across stages."""
+    The four stages stay unrolled so that XLA fuses across them (a ``lax.scan`` over stages 2–4
+    ran the Adam step 22 % slower for 4 % faster compilation, ``benchmarks/training_speed.py``)."""
     half = 0.5 * dt
     if k1 is None:
         k1 = f(s, t)
@@ -55,6 +53,27 @@ def rk4_solve(f: VectorField, s0: Array, ts: Array) -> Array:
         return s_next, s_next
 
     _, rest = jax.lax.scan(body, s0, (ts[:-1], ts[1:]))
+    return jnp.concatenate([s0[None], rest], axis=0)
+
+
+def rk4_solve_held(
+    f: Callable[[Array, Array, Array], Array], s0: Array, ts: Array, inputs: Array, switch: Array
+) -> Array:
+    """RK4 over the grid ``ts`` ``(T,)`` of ``ṡ = f(s, t, u)`` under an input ``u`` that is held
+    piecewise constant and changes at most once per interval: on interval ``k`` it is
+    ``inputs[k]`` up to ``switch[k]`` and ``inputs[k + 1]`` from there to ``ts[k + 1]``
+    (``ts[k] ≤ switch[k] ≤ ts[k + 1]``; ``switch[k] = ts[k + 1]``: no change). Each part takes
+    one RK4 step (a part of length 0 leaves the state as it is), so a step never straddles the
+    change. ``inputs``: ``(T, ...)``; ``switch``: ``(T,)`` (the last entry unused). Returns
+    ``(T, *s0.shape)``."""
+
+    def body(s: Array, interval: tuple[Array, ...]) -> tuple[Array, Array]:
+        t0, t1, at, u0, u1 = interval
+        mid = rk4_step(lambda x, tt: f(x, tt, u0), s, t0, at - t0)
+        s_next = rk4_step(lambda x, tt: f(x, tt, u1), mid, at, t1 - at)
+        return s_next, s_next
+
+    _, rest = jax.lax.scan(body, s0, (ts[:-1], ts[1:], switch[:-1], inputs[:-1], inputs[1:]))
     return jnp.concatenate([s0[None], rest], axis=0)
 
 

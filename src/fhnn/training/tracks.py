@@ -33,10 +33,10 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from fhnn.data.dataset import Split
+from fhnn.data.dataset import Split, within_intervals
 from fhnn.models.base import AbstractVectorField
-from fhnn.physics.actuation import forcing
-from fhnn.physics.integrators import rk4_solve
+from fhnn.physics.actuation import actuation_force, forcing
+from fhnn.physics.integrators import rk4_solve, rk4_solve_held
 
 Array = jax.Array
 
@@ -101,12 +101,14 @@ class TrackFit:
         self._root_w = jnp.asarray(np.sqrt(w))
         self._act = jnp.asarray(split.actuation)
         self._res = jnp.asarray(split.force_residual)
+        # held forcing's change times (for interpolated forcing the times, unread)
+        self._switch = jnp.asarray(split.times if split.switch is None else split.switch)
         self.n = 2 * int(np.asarray(self._mask).sum())
         self.n_tracks = split.n_traj
         #: Each track's start state ``(N, 4)``: the split's first state, refined by the fit.
         self.z = jnp.asarray(split.states[:, 0])
         self.damping = DAMPING_START
-        resid, self._jz, self._jtheta = _programs(self._static, self._unravel)
+        resid, self._jz, self._jtheta = _programs(self._static, self._unravel, split.switch is not None)
         self._resid = resid
         self._cost = jax.jit(lambda th, z, *tr: jnp.sum(resid(th, z, *tr) ** 2))
         self.z = self._fit_starts(4)
@@ -140,8 +142,8 @@ class TrackFit:
             return self._total_cost(theta, z)
         total = 0.0
         for b in self._batches():
-            t, act, res, _, obs, root_w = self._tracks(b)
-            total += float(self._cost(theta, z[b], t, act, res, mask[b], obs, root_w))
+            t, act, res, _, obs, root_w, switch = self._tracks(b)
+            total += float(self._cost(theta, z[b], t, act, res, mask[b], obs, root_w, switch))
         return total
 
     def _tracks(self, rows: slice) -> tuple[Array, ...]:
@@ -152,6 +154,7 @@ class TrackFit:
             self._mask[rows],
             self._obs[rows],
             self._root_w[rows],
+            self._switch[rows],
         )
 
     def _batches(self) -> list[slice]:
@@ -290,6 +293,7 @@ def _pieces(split: Split, kept: list[tuple[int, int, int]]) -> Split:
         forces=take(split.forces),
         actuation=split.actuation[index],
         lengths=lengths,
+        switch=None if split.switch is None else within_intervals(t, take(split.switch)),
     )
 
 
@@ -358,20 +362,34 @@ class ForecastScore:
         return float(np.sqrt(squares / self._n_ahead))
 
 
-def _programs(static: object, unravel: Callable[[Array], object]) -> tuple[Callable[..., Array], ...]:
+def _programs(
+    static: object, unravel: Callable[[Array], object], held: bool
+) -> tuple[Callable[..., Array], ...]:
     """The compiled residuals ``(B, T, 2)`` [m] of a batch of tracks (each times the square root
-    of its track's weight), their Jacobian blocks in the
+    of its track's weight; under held forcing, ``held``, RK4 steps split at each change), their
+    Jacobian blocks in the
     start states ``(B, T, 2, 4)`` and Jacobian-vector products with a chunk of tangents in the
     model's parameters ``(C, B, T, 2)``."""
 
     def one(
-        theta: Array, s0: Array, tt: Array, aa: Array, rr: Array, mk: Array, ob: Array, rw: Array
+        theta: Array,
+        s0: Array,
+        tt: Array,
+        aa: Array,
+        rr: Array,
+        mk: Array,
+        ob: Array,
+        rw: Array,
+        sw: Array,
     ) -> Array:
         model = eqx.combine(unravel(theta), static)
-        field = lambda x, ti: model(x, ti, forcing(aa, ti, tt, rr))  # noqa: E731
-        return rw * jnp.where(mk[:, None], rk4_solve(field, s0, tt)[:, :2] - ob, 0.0)
+        if held:
+            path = rk4_solve_held(lambda x, ti, u: model(x, ti, actuation_force(aa, ti) + u), s0, tt, rr, sw)
+        else:
+            path = rk4_solve(lambda x, ti: model(x, ti, forcing(aa, ti, tt, rr)), s0, tt)
+        return rw * jnp.where(mk[:, None], path[:, :2] - ob, 0.0)
 
-    axes = (None, 0, 0, 0, 0, 0, 0, 0)
+    axes = (None, 0, 0, 0, 0, 0, 0, 0, 0)
 
     def resid(theta: Array, z: Array, *tracks: Array) -> Array:
         return jax.vmap(one, in_axes=axes)(theta, z, *tracks)
