@@ -36,11 +36,17 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         markdown = markdown.replace(REPRODUCTION_MARK, reproduction_cells(root))
     if RESULTS_MARK in markdown:
         markdown = markdown.replace(RESULTS_MARK, benchmark_results(root))
+    if RECOVERY_MARK in markdown:
+        markdown = markdown.replace(RECOVERY_MARK, reproduction_recovery(root))
+    if TIMING_MARK in markdown:
+        markdown = markdown.replace(TIMING_MARK, reproduction_timing(root))
     return markdown
 
 
 REPRODUCTION_MARK = "<!-- reproduction-cells -->"
 RESULTS_MARK = "<!-- benchmark-results -->"
+RECOVERY_MARK = "<!-- reproduction-recovery -->"
+TIMING_MARK = "<!-- reproduction-timing -->"
 
 
 def _number(value: float | None) -> str:
@@ -84,3 +90,33 @@ def benchmark_results(root) -> str:
             f"| `benchmarks/results/{path.name}` | `{commit[:12]}{'+dirty' if 'dirty' in commit else ''}` |"
         )
     return "\n".join(lines)
+
+
+def reproduction_recovery(root) -> str:
+    """T6 of ``docs/reproduction/tables.json``: each data set's largest relative error [%] of the
+    added masses, drag coefficients and flow over the data's range, mean ± std over the seeds."""
+    import json
+
+    records = json.loads((root / "docs" / "reproduction" / "tables.json").read_text())
+    metrics = ("m_ax", "m_ay", "c_l", "c_q", "flow")
+    cells: dict[str, dict[str, str]] = {}
+    for r in records:
+        if r["table"] == "T6" and r["metric"] in metrics and r["mean"] is not None:
+            cells.setdefault(r["data"], {})[r["metric"]] = f"{100 * r['mean']:.2g} ± {100 * r['std']:.2g}"
+    lines = ["| data | " + " | ".join(metrics) + " |", "| --- |" + " ---: |" * len(metrics)]
+    for data, row in cells.items():
+        lines.append(f"| {data} | " + " | ".join(row.get(m, "—") for m in metrics) + " |")
+    return "\n".join(lines)
+
+
+def reproduction_timing(root) -> str:
+    """One sentence from ``docs/reproduction/timings.json``: jobs, wall clock, CPU time."""
+    import json
+
+    t = json.loads((root / "docs" / "reproduction" / "timings.json").read_text())
+    wall = t.get("wall_seconds_this_run")
+    minutes = "" if wall is None else f"{int(wall // 60)} min {int(wall % 60)} s of wall clock, "
+    return (
+        f"{t['jobs']} jobs: {minutes}{t['job_seconds_total'] / 60:.0f} CPU-minutes of jobs "
+        "(`docs/reproduction/timings.json`)."
+    )
