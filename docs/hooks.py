@@ -68,7 +68,7 @@ def reproduction_cells(root) -> str:
         if r["metric"] != "rmse_pos":
             continue
         if r["statistic"] == "mean":
-            ours = f"{_number(r['mean'])} ± {_number(r['std'])}"
+            ours = f"{_number(r['mean'])} ± {r['std']:.2g}"
         elif r["mean"] is None:
             ours = f"diverged ({r['diverged']}/{r['rollouts']} rollouts)"
         else:
