@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -13,6 +12,7 @@ import jax
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import get_scenario
+from fhnn.runtime import provenance
 
 
 def dataset(name: str, folder: Path, seed: int | None = None) -> tuple[Dataset, Path]:
@@ -35,13 +35,9 @@ def seconds_per_call(fn: Callable[[], Any], repeats: int) -> float:
     return (time.perf_counter() - t0) / repeats
 
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def commit() -> str:
-    """The commit of the working tree, with ``+dirty`` where ``src`` has changes."""
-
-    def git(*args: str) -> str:
-        return subprocess.run(["git", *args], capture_output=True, text=True, cwd=ROOT).stdout.strip()
-
-    return git("rev-parse", "HEAD") + ("+dirty" if git("status", "--porcelain", "src") else "")
+def stamp() -> dict:
+    """The provenance a result file records (:func:`fhnn.runtime.provenance`): its ``commit``
+    (with ``+dirty`` where the package's source has changes) at the top, for the docs' list."""
+    record = provenance()
+    commit = record["commit"] or "unknown"
+    return {"commit": commit + ("+dirty" if record["dirty"] else ""), "provenance": record}

@@ -25,7 +25,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
-from _common import commit
+from _common import stamp
 
 import fhnn
 from fhnn.data.observation import observe
@@ -98,7 +98,7 @@ def main() -> None:
     for name, d in diffs.items():
         print(f"{name:>10}: " + ", ".join(f"{k} {v:.2e}" for k, v in d.items()))
     RESULT.parent.mkdir(exist_ok=True)
-    record = {"commit": commit(), "relative_difference_to_original": diffs, "seconds": seconds}
+    record = {**stamp(), "relative_difference_to_original": diffs, "seconds": seconds}
     RESULT.write_text(json.dumps(record, indent=2) + "\n")
 
 

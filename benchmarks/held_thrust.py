@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from _common import commit
+from _common import stamp
 
 import fhnn
 from fhnn.api.predict import check_band
@@ -147,8 +147,7 @@ def main() -> None:
     RESULT.write_text(
         json.dumps(
             {
-                "commit": commit(),
-                "machine_cores": 2,
+                **stamp(),
                 "test_tracks": len(ids),
                 "max_time": args.max_time,
                 "runs": rows,

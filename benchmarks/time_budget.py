@@ -23,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-from _common import commit
+from _common import stamp
 
 from fhnn.data.observation import observe
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
@@ -84,7 +84,7 @@ def main() -> None:
         bound = f"bound {row['bound']:.0f} s"
         print(f"{name}: {row['seconds']:.1f} s for --max-time {budget:g} ({bound}): {row['ran']}")
     RESULT.parent.mkdir(parents=True, exist_ok=True)
-    RESULT.write_text(json.dumps({"commit": commit(), "machine_cores": 2, "cases": rows}, indent=1) + "\n")
+    RESULT.write_text(json.dumps({**stamp(), "cases": rows}, indent=1) + "\n")
     print(f"wrote {RESULT}")
 
 

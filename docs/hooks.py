@@ -83,12 +83,23 @@ def benchmark_results(root) -> str:
     """Every ``benchmarks/results/*.json`` with the commit that made it."""
     import json
 
-    lines = ["| result file | made at commit |", "| --- | --- |"]
+    lines = [
+        "| result file | made at commit | source digest | machine | date |",
+        "| --- | --- | --- | --- | --- |",
+    ]
     for path in sorted((root / "benchmarks" / "results").glob("*.json")):
-        commit = json.loads(path.read_text()).get("commit", "not recorded")
-        lines.append(
-            f"| `benchmarks/results/{path.name}` | `{commit[:12]}{'+dirty' if 'dirty' in commit else ''}` |"
-        )
+        record = json.loads(path.read_text())
+        commit = record.get("commit", "not recorded")
+        made = record.get("provenance") or {}
+        machine = made.get("machine") or {}
+        cells = [
+            f"`benchmarks/results/{path.name}`",
+            f"`{commit[:12]}{'+dirty' if 'dirty' in commit else ''}`",
+            f"`{made['source']}`" if made else "not recorded",
+            f"{machine.get('cpu', '')}, {machine.get('cores', '?')} cores" if machine else "",
+            made.get("date", "")[:10],
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

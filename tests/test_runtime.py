@@ -26,3 +26,17 @@ def test_importing_fhnn_sets_its_defaults_only_where_unset() -> None:
     # on a GPU, several fhnn processes share the device: none takes 75 % of its memory up front
     assert _settings() == ["nan", "false"]
     assert _settings(EQX_ON_ERROR="raise", XLA_PYTHON_CLIENT_PREALLOCATE="true") == ["raise", "true"]
+
+
+def test_provenance_names_the_code_and_the_machine() -> None:
+    from fhnn.runtime import PACKAGE_ROOT, RESULT_SOURCES, provenance, source_digest
+
+    record = provenance()
+    assert record["source"] == source_digest(RESULT_SOURCES)
+    assert record["machine"]["cores"] == os.cpu_count() and record["machine"]["device"] == "cpu"
+    assert record["packages"]["jax"] is not None and record["date"].endswith("+00:00")
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=PACKAGE_ROOT, capture_output=True, text=True)
+    if head.returncode == 0:  # a git checkout: the commit and whether the package differs from it
+        assert record["commit"] == head.stdout.strip() and isinstance(record["dirty"], bool)
+    else:
+        assert record["commit"] is None and record["dirty"] is None

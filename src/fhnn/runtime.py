@@ -108,11 +108,88 @@ def source_digest(parts: tuple[str, ...], root: Path | None = None) -> str:
     return h.hexdigest()[:16]
 
 
+#: The package's parts whose code can move a result (all but the command line's shell).
+RESULT_SOURCES = (
+    "physics",
+    "data",
+    "models",
+    "training",
+    "evaluation",
+    "experiments",
+    "api",
+    "config.py",
+    "executables.py",
+    "files.py",
+    "runtime.py",
+)
+#: Packages whose versions a result records.
+RESULT_PACKAGES = ("jax", "jaxlib", "equinox", "optax", "diffrax", "optimistix", "lineax", "numpy", "scipy")
+
+
+def _git(*args: str) -> str | None:
+    import subprocess
+
+    try:
+        done = subprocess.run(
+            ["git", *args], cwd=PACKAGE_ROOT, capture_output=True, text=True, timeout=30, check=True
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return done.stdout.strip()
+
+
+def _cpu_model() -> str:
+    import platform
+
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def provenance() -> dict[str, object]:
+    """What made a result, for the files results are written to.
+
+    Returns:
+        ``version`` (fhnn's), ``commit`` and ``dirty`` (whether the package's source differs
+        from it; both ``None`` outside a git work tree), ``source`` (:func:`source_digest` of
+        :data:`RESULT_SOURCES`: equal digests, equal results-affecting code), ``python`` and
+        ``packages`` (versions of :data:`RESULT_PACKAGES`), ``machine`` (CPU model, cores, JAX's
+        device) and ``date`` (UTC, ISO 8601).
+    """
+    import datetime
+    import platform
+
+    packages = {}
+    for name in RESULT_PACKAGES:
+        try:
+            packages[name] = _metadata.version(name)
+        except _metadata.PackageNotFoundError:
+            packages[name] = None
+    commit = _git("rev-parse", "HEAD")
+    status = _git("status", "--porcelain", "--", ".") if commit else None
+    return {
+        "version": __version__,
+        "commit": commit,
+        "dirty": None if status is None else bool(status),
+        "source": source_digest(RESULT_SOURCES),
+        "python": platform.python_version(),
+        "packages": packages,
+        "machine": {"cpu": _cpu_model(), "cores": os.cpu_count(), "device": jax.devices()[0].device_kind},
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+    }
+
+
 __all__ = [
     "CACHE_ENV",
     "PACKAGE_ROOT",
+    "RESULT_SOURCES",
     "__version__",
     "default_cache_dir",
+    "provenance",
     "source_digest",
     "use_compilation_cache",
 ]
