@@ -295,6 +295,8 @@ class Trainer:
         fit = TrackFit(start, free, split, weights)
         # an iteration costs about what setting the fit up did (its programs, the start states)
         took = time.monotonic() - began
+        if time.monotonic() + took >= self.deadline("tracks"):  # before the validation fits' setup
+            return self._tracks_not_begun(state, done, left)
         held_out = TrackFit(start, free, track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0])
         forecasts = ForecastScore(start, free, self.val_split, cfg.track_samples, cfg.seed + 7)
         guard = forecasts(fit.theta)
