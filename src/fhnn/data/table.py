@@ -39,7 +39,7 @@ import numpy as np
 from fhnn.data.clock import DATE, SECONDS_ONLY, ZONE, date_time, origin_ns
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.files import atomic_output, check_input_file
-from fhnn.physics.actuation import STEP_WIDTH
+from fhnn.physics.actuation import held_grid
 
 REQUIRED = ("traj_id", "t", "x", "y")
 OPTIONAL_PAIRS = (("vx", "vy"), ("Fx", "Fy"))
@@ -502,8 +502,9 @@ def held(
     """A forcing table (as :func:`read_forcing` returns it) read as ``hold`` says: ``"linear"``
     between rows (unchanged), or ``"previous"``: each row's force held until the next row, as
     thrusters that switch at the rows' times do. A held table is returned as rows whose linear
-    interpolant is that step function: before each row's time a row
-    :data:`~fhnn.physics.actuation.STEP_WIDTH` s earlier with the previous force.
+    interpolant is that step function (:func:`~fhnn.physics.actuation.held_grid`, each change at
+    its row's time: a row :data:`~fhnn.physics.actuation.STEP_WIDTH` s before it holds the
+    previous force).
 
     Raises:
         ConfigError: an unknown ``hold``.
@@ -513,13 +514,9 @@ def held(
         return rows
     out = {}
     for key, (t, force) in rows.items():
-        gaps = np.diff(t)
-        before = t[1:] - np.minimum(STEP_WIDTH, gaps / 2)
-        times = np.empty(2 * t.size - 1)
-        times[0::2], times[1::2] = t, before
-        values = np.empty((times.size, 2))
-        values[0::2], values[1::2] = force, force[:-1]
-        out[key] = (times, values)  # increasing: each added row lies inside its gap
+        at_rows = np.r_[t[1:], t[-1]]  # each row's change at the row itself, not between rows
+        grid, values, _ = held_grid(t[None], force[None], at_rows[None])
+        out[key] = (grid[0], values[0])
     return out
 
 
