@@ -59,7 +59,7 @@ def reproduction_cells(root) -> str:
     the paper's over ours."""
     import json
 
-    records = json.loads((root / "docs" / "reproduction" / "tables.json").read_text())
+    records = json.loads((root / "docs" / "reproduction" / "tables.json").read_text())["cells"]
     lines = [
         "| table | data | model | horizon [s] | ours [m] | paper [m] | paper / ours |",
         "| --- | --- | --- | ---: | ---: | ---: | ---: |",
@@ -108,12 +108,15 @@ def reproduction_recovery(root) -> str:
     added masses, drag coefficients and flow over the data's range, mean ± std over the seeds."""
     import json
 
-    records = json.loads((root / "docs" / "reproduction" / "tables.json").read_text())
+    records = json.loads((root / "docs" / "reproduction" / "tables.json").read_text())["cells"]
     metrics = ("m_ax", "m_ay", "c_l", "c_q", "flow")
     cells: dict[str, dict[str, str]] = {}
     for r in records:
         if r["table"] == "T6" and r["metric"] in metrics and r["mean"] is not None:
-            cells.setdefault(r["data"], {})[r["metric"]] = f"{100 * r['mean']:.2g} ± {100 * r['std']:.2g}"
+            text = f"{100 * r['mean']:.2g} ± {100 * r['std']:.2g}"
+            if r["diverged"]:  # seeds whose value is not finite, left out of the mean
+                text += f" ({r['diverged']}/{r['rollouts']} seeds non-finite)"
+            cells.setdefault(r["data"], {})[r["metric"]] = text
     lines = ["| data | " + " | ".join(metrics) + " |", "| --- |" + " ---: |" * len(metrics)]
     for data, row in cells.items():
         lines.append(f"| {data} | " + " | ".join(row.get(m, "—") for m in metrics) + " |")

@@ -67,7 +67,7 @@ def _headline_table() -> dict[str, list[str]]:
 
 def _records() -> list[dict]:
     """The cells the reproduction wrote (``docs/reproduction/tables.json``)."""
-    return json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())
+    return json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())["cells"]
 
 
 def _same(printed: str, value: float, digits: int) -> bool:

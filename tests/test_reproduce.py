@@ -283,7 +283,7 @@ def test_cells_are_mean_and_sample_std_over_seeds_with_the_paper_beside() -> Non
     assert t6.mean == pytest.approx(0.03) and t6.text().startswith("3 % ±")
     # T1 compares FHNN with the Neural ODE only: no Neural ODE ran, so only FHNN rows
     assert {c.model for c in cells if c.table == "T1"} == {"fhnn"}
-    rows = json.loads(to_json(cells))
+    rows = json.loads(to_json(cells, {"commit": "abc"}))["cells"]
     assert len(rows) == len(cells) and all(r["mean"] is None or math.isfinite(r["mean"]) for r in rows)
     assert to_csv(cells).count("\n") == len(cells) + 1
     for _, _, header, table_rows in layout(cells):
@@ -311,6 +311,48 @@ def test_a_seed_with_a_diverged_rollout_is_kept_as_infinite_and_the_cell_shows_t
     assert outside.mean == pytest.approx(0.25) and outside.statistic == "mean"  # a fraction stays finite
     markdown = to_markdown(cells, 3)
     assert markdown.count(DIVERGENCE_RULE) == 1 + len({(k, t) for k, t, _, _ in layout(cells) if k != "T6"})
+
+
+def test_t6_counts_seeds_whose_recovery_is_not_finite_and_prints_any_spread() -> None:
+    """T6 leaves a non-finite seed out of the mean and says so; a small spread is printed as
+    it is, never rounded to '± 0 %'."""
+    config = ReproduceConfig(
+        seeds=3,
+        models=("fhnn",),
+        ablations=(),
+        main_scenarios=("solid_body_vortex",),
+        scenario_table=(),
+        identifiability=False,
+    )
+    _, jobs = build_grid(config)
+    value = {0: 3e-6, 1: 1e-6, 2: math.nan}
+    results = {j.id: _result(1e-3, recovery=value[j.seed]) for j in jobs}
+    cell = next(c for c in build_tables(jobs, results, ("solid_body_vortex",), ()) if c.metric == "m_ax")
+    assert (cell.diverged, cell.rollouts, cell.seeds) == (1, 3, 2)
+    assert cell.mean == pytest.approx(2e-6) and cell.std == pytest.approx(np.std([3e-6, 1e-6], ddof=1))
+    assert cell.text() == "0.0002 % ± 0.00014 % (1/3 seeds non-finite, left out)"
+
+
+def test_the_grid_trains_as_fhnn_train_does_on_data_without_known_forcing() -> None:
+    """The reproduction applies the model settings ``fhnn train`` applies (constant added
+    masses where they are a gauge of the data, no slow-window weights on noisy data)."""
+    from fhnn.data.simulate import SimulationConfig, simulate_dataset
+    from fhnn.physics.scenarios import get_scenario
+    from fhnn.training.plans import data_settings
+
+    config = ReproduceConfig(models=("fhnn",), ablations=(), seeds=1)
+    datasets, jobs = build_grid(config)
+    for d in datasets:
+        sc = get_scenario(d.scenario)
+        small = simulate_dataset(
+            sc, SimulationConfig.for_scenario(sc, **{**d.settings, "n_traj": 3, "duration": 1.0})
+        )
+        (job,) = [j for j in jobs if j.data.id == d.id]
+        implied = {
+            k.removeprefix("model."): v for k, v in data_settings(small).items() if k.startswith("model.")
+        }
+        assert job.run.model == config.model.fhnn.replace(**implied), d.label
+    assert {d.label for d in datasets if d.masses_are_gauge} == {"solid_body_vortex", "steady_vortex_noact"}
 
 
 def test_a_cell_whose_every_rollout_diverged_reads_diverged() -> None:

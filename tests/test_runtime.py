@@ -40,3 +40,21 @@ def test_provenance_names_the_code_and_the_machine() -> None:
         assert record["commit"] == head.stdout.strip() and isinstance(record["dirty"], bool)
     else:
         assert record["commit"] is None and record["dirty"] is None
+
+
+def test_source_digest_follows_the_code_not_its_documentation(tmp_path) -> None:
+    """Docstrings, comments and layout leave the digest alone; a changed statement moves it."""
+    from fhnn.runtime import source_digest
+
+    def digest(text: str, name: str) -> str:
+        folder = tmp_path / name
+        (folder / "pkg").mkdir(parents=True)
+        (folder / "pkg" / "m.py").write_text(text)
+        return source_digest(("pkg",), folder)
+
+    plain = digest("def f(x):\n    return 2 * x\n", "plain")
+    documented = digest(
+        '"""Module."""\n\n\ndef f(x):  # twice\n    """Twice ``x``."""\n    return 2 * x\n', "doc"
+    )
+    changed = digest("def f(x):\n    return 3 * x\n", "changed")
+    assert plain == documented and plain != changed

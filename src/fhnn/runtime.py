@@ -85,12 +85,34 @@ def default_cache_dir() -> str | None:
 PACKAGE_ROOT = Path(__file__).resolve().parent
 
 
+def _code(text: str) -> str:
+    """The syntax tree of Python source ``text`` without docstrings (any statement that is a bare
+    string, which does nothing), as text; comments and layout are not in the tree."""
+    import ast
+
+    def doc(stmt: ast.stmt) -> bool:
+        return (
+            isinstance(stmt, ast.Expr)
+            and isinstance(stmt.value, ast.Constant)
+            and isinstance(stmt.value.value, str)
+        )
+
+    tree = ast.parse(text)
+    for node in ast.walk(tree):
+        for name in ("body", "orelse", "finalbody"):
+            block = getattr(node, name, None)
+            if isinstance(block, list) and block and isinstance(block[0], ast.stmt):
+                setattr(node, name, [s for s in block if not doc(s)] or [ast.Pass()])
+    return ast.dump(tree, include_attributes=False)
+
+
 @functools.cache
 def source_digest(parts: tuple[str, ...], root: Path | None = None) -> str:
-    """A hash (16 hex digits) of the package's source: the relative path and bytes of every
-    ``.py`` file under ``parts`` (folders or files relative to ``root``, default
-    :data:`PACKAGE_ROOT`), in sorted order. What a cached result was computed by: a change to any
-    of these files changes it. Read once per process."""
+    """A hash (16 hex digits) of the package's code: the relative path and syntax tree, without
+    docstrings and comments, of every ``.py`` file under ``parts`` (folders or files relative to
+    ``root``, default :data:`PACKAGE_ROOT`), in sorted order. What a cached result was computed
+    by: a change to the code of any of these files changes it, a change to their documentation
+    does not. Read once per process."""
     base = PACKAGE_ROOT if root is None else Path(root)
     files: set[Path] = set()
     for part in parts:
@@ -104,7 +126,7 @@ def source_digest(parts: tuple[str, ...], root: Path | None = None) -> str:
     h = hashlib.sha256()
     for path in sorted(files):
         h.update(path.relative_to(base).as_posix().encode() + b"\0")
-        h.update(path.read_bytes() + b"\0")
+        h.update(_code(path.read_text()).encode() + b"\0")
     return h.hexdigest()[:16]
 
 

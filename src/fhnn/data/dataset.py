@@ -77,6 +77,17 @@ def samples_until(t: np.ndarray, until: float) -> int:
     return int(np.searchsorted(t, until - 1e-9)) + 1
 
 
+def masses_are_gauge(known_forcing: bool, constants: dict[str, Any]) -> bool:
+    """Whether added masses are a free gauge of data (:attr:`Dataset.masses_are_gauge`).
+
+    Args:
+        known_forcing: whether the data carry known, non-zero external forces.
+        constants: the body's ``M`` [kg], ``rho`` [kg/m³], ``V`` [m³] and ``fluid_inertia``.
+    """
+    neutral = np.isclose(constants["rho"] * constants["V"], constants["M"], rtol=1e-9, atol=0.0)
+    return not known_forcing and (not constants["fluid_inertia"] or bool(neutral))
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Split:
     """One split of a data set: ``N`` trajectories of (up to) ``T`` samples.
@@ -268,9 +279,7 @@ class Dataset:
         Morison fluid inertia or a neutrally buoyant body (``ρV = M``). A body's acceleration is
         then ``F_h,i / (M + m_a,i)`` (plus ``Du/Dt`` where ``ρV = M``), so scaling ``M + m_a`` and
         the drag together by any factor, even one that varies with ``(r, σ)``, changes nothing."""
-        body = self.constants()
-        neutral = np.isclose(body["rho"] * body["V"], body["M"], rtol=1e-9, atol=0.0)
-        return not self.known_forcing and (not body["fluid_inertia"] or bool(neutral))
+        return masses_are_gauge(self.known_forcing, self.constants())
 
     def _truth(self, what: str) -> None:
         if self.imported:

@@ -32,11 +32,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
+from fhnn.data.dataset import masses_are_gauge
+from fhnn.data.simulate import SimulationConfig
 from fhnn.errors import ConfigError
 from fhnn.models.registry import MODELS
 from fhnn.physics.scenarios import PAPER_SCENARIOS, SCENARIOS
 from fhnn.runtime import source_digest
-from fhnn.training.plans import DEFAULT_PLAN, PLANS, noisy_model_settings
+from fhnn.training.plans import DEFAULT_PLAN, PLANS, model_data_settings
 from fhnn.training.run import RunConfig
 from fhnn.training.trainer import TrainConfig
 
@@ -138,9 +140,9 @@ def reproduction_train() -> TrainConfig:
 def reproduction_models() -> Config:
     """Each model kind's configuration in the reproduction: its defaults with the default plan's
     model settings (FHNN width 32 and slow-window weights, ``slow_weight`` 1), so the ablations
-    share FHNN's architecture. On data sets with observation noise (``noisy_flow``) the settings
-    such data call for replace them (FHNN ``slow_weight`` 0;
-    :func:`~fhnn.training.plans.noisy_model_settings`, :func:`build_grid`)."""
+    share FHNN's architecture. On each data set :func:`build_grid` then applies the model settings
+    ``fhnn train`` applies for such data (:func:`~fhnn.training.plans.model_data_settings`: FHNN
+    ``slow_weight`` 0 on noisy observations, constant added masses without known forcing)."""
     plan = PLANS[DEFAULT_PLAN]
     return ModelOptions.from_dict(
         {kind: MODELS[kind].config().replace(**plan.model.get(kind, {})).to_dict() for kind in MODELS}
@@ -290,6 +292,14 @@ class DataJob:
         return float(self.settings.get("obs_noise", SCENARIOS[self.scenario].defaults.obs_noise)) > 0
 
     @property
+    def masses_are_gauge(self) -> bool:
+        """Whether the data set's added masses are a free gauge (no known forcing; see
+        :attr:`fhnn.data.dataset.Dataset.masses_are_gauge`), known before it is simulated."""
+        scenario = SCENARIOS[self.scenario]()
+        config = SimulationConfig.for_scenario(scenario, **self.settings)
+        return masses_are_gauge(config.actuation != "none", scenario.body().to_dict())
+
+    @property
     def spec(self) -> dict[str, Any]:
         spec = {"kind": "data", "scenario": self.scenario, "settings": self.settings}
         return {**spec, "fast_compile": True} if self.fast_compile else spec
@@ -370,8 +380,9 @@ def build_grid(config: ReproduceConfig) -> tuple[list[DataJob], list[ModelJob]]:
     def add(d: DataJob, model: str, ablation: str = "none") -> None:
         datasets.setdefault(d.id, d)
         model_config = getattr(config.model, model)
-        if d.noisy:  # the default plan's rule for noisy observations (FHNN: no slow-window weights)
-            model_config = model_config.replace(**noisy_model_settings(model))
+        # the model settings fhnn train applies for these data (plans.data_settings)
+        implied = model_data_settings(model, noisy=d.noisy, masses_are_gauge=d.masses_are_gauge)
+        model_config = model_config.replace(**implied)
         if ablation != "none":
             model_config = model_config.replace(ablation=ablation)
         for seed in range(config.seeds):

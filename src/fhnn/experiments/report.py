@@ -40,7 +40,7 @@ from fhnn.experiments.tables import (
     to_markdown,
 )
 from fhnn.files import write_atomic
-from fhnn.runtime import __version__, source_digest
+from fhnn.runtime import __version__, provenance, source_digest
 from fhnn.training.run import Run
 from fhnn.training.trainer import TrainConfig
 
@@ -63,7 +63,12 @@ def write_tables(cells: list[Cell], folder: Path, seeds: int) -> list[Path]:
     written = []
     for key in [*dict.fromkeys(c.table for c in cells), "tables"]:
         sub = cells if key == "tables" else [c for c in cells if c.table == key]
-        for ext, text in (("md", to_markdown(sub, seeds)), ("csv", to_csv(sub)), ("json", to_json(sub))):
+        stamp = provenance()
+        for ext, text in (
+            ("md", to_markdown(sub, seeds)),
+            ("csv", to_csv(sub)),
+            ("json", to_json(sub, stamp)),
+        ):
             path = folder / f"{key}.{ext}"
             write_atomic(path, text)
             written.append(path)
@@ -183,7 +188,7 @@ def build_report(
     cells = build_tables(jobs, results, config.main_scenarios, config.scenario_table)
     write_tables(cells, out / "tables", config.seeds)
     figure_paths = make_figures(out, jobs, results, cells, config)
-    timings = {**_timings(jobs, results), "wall_seconds_this_run": wall_seconds}
+    timings = {**_timings(jobs, results), "wall_seconds_this_run": wall_seconds, "provenance": provenance()}
     versions = package_versions()
     write_atomic(out / "timings.json", json.dumps(timings, indent=1))
     pngs = [p for p in figure_paths if p.suffix == ".png"]

@@ -36,7 +36,7 @@ from fhnn.experiments.executors import (
 from fhnn.experiments.grid import DataJob, ModelJob, ReproduceConfig, build_grid
 from fhnn.experiments.report import build_report
 from fhnn.files import check_new_folder, folder_lock, write_atomic, write_folder_atomic
-from fhnn.runtime import __version__, default_cache_dir, source_digest
+from fhnn.runtime import __version__, default_cache_dir, provenance, source_digest
 
 FORMAT = "fhnn-reproduction"
 #: ``progress(phase, done, total, last)``: phase "jobs" (data sets and training jobs still to do)
@@ -196,7 +196,15 @@ def _reproduce(
         (out / sub).mkdir(parents=True, exist_ok=True)
     write_atomic(
         out / "reproduce.json",
-        json.dumps({"format": FORMAT, "version": __version__, "config": config.to_dict()}, indent=1).encode(),
+        json.dumps(
+            {
+                "format": FORMAT,
+                "version": __version__,
+                "config": config.to_dict(),
+                "provenance": provenance(),
+            },
+            indent=1,
+        ).encode(),
     )
     # the commands' compilation cache (fhnn.runtime.default_cache_dir): a job compiled by an earlier
     # reproduction, a killed one or a plain `fhnn train` of the same shapes is loaded, not compiled

@@ -96,13 +96,13 @@ class Cell:
         if self.statistic == "median":
             return f"median {mean:.2e} ({self.diverged}/{self.rollouts} div.)"
         pct = self.metric in RECOVERY_METRICS or (self.metric in METRICS and METRICS[self.metric].fraction)
-        if pct:  # percentages; a spread below 0.001 percentage points is rounding noise
+        if pct:
             out = f"{100 * mean:.3g} %" + (f" ± {100 * std:.2g} %" if self.seeds > 1 else "")
-            if self.seeds > 1 and 100 * std < 1e-3:
-                out = f"{100 * mean:.3g} % ± 0 %"
         else:
             out = f"{mean:.2e}" + (f" ± {std:.2e}" if self.seeds > 1 else "")
-        if self.diverged:
+        if self.diverged and self.horizon is None:  # recovery: seeds whose value is not finite
+            out += f" ({self.diverged}/{self.rollouts} seeds non-finite, left out)"
+        elif self.diverged:
             out += f" ({self.diverged}/{self.rollouts} div.)"
         return out
 
@@ -127,10 +127,29 @@ def seed_value(metrics: dict, metric: str) -> float:
 
 
 def _cell(table: str, data: str, model: str, horizon: int | None, metric: str, results: list[dict]) -> Cell:
-    if horizon is None:  # recovery: every job has a number, or (not computed) none has
-        values = [v for v in (_recovery_value(r, metric) for r in results) if math.isfinite(v)]
+    if horizon is None:  # recovery: the seeds' finite values, the others counted
+        every = [_recovery_value(r, metric) for r in results]
+        values = [v for v in every if math.isfinite(v)]
         mean, std = seed_stats(values)
-        return Cell(table, data, model, None, metric, mean, std, len(results), 0, 0, math.nan, math.nan, None)
+        computed = [r for r in results if r.get("recovery") is not None]
+        left_out = sum(
+            1 for r, v in zip(results, every, strict=True) if r.get("recovery") and not math.isfinite(v)
+        )
+        return Cell(
+            table,
+            data,
+            model,
+            None,
+            metric,
+            mean,
+            std,
+            len(values),
+            left_out,
+            len(computed),
+            math.nan,
+            math.nan,
+            None,
+        )
     h = str(horizon)
     spec = [r["spec_metrics"][h] for r in results]
     paper = [r["paper_metrics"][h] for r in results]
@@ -203,13 +222,13 @@ def build_tables(
     return cells
 
 
-def to_json(cells: list[Cell]) -> str:
-    """One object per cell; NaN becomes null."""
+def to_json(cells: list[Cell], provenance: dict[str, Any] | None = None) -> str:
+    """``{"provenance": …, "cells": [one object per cell]}``; NaN becomes null."""
     rows = [
         {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in asdict(c).items()}
         for c in cells
     ]
-    return json.dumps(rows, indent=1)
+    return json.dumps({"provenance": provenance, "cells": rows}, indent=1)
 
 
 def to_csv(cells: list[Cell]) -> str:

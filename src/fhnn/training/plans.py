@@ -146,11 +146,8 @@ def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
         Dotted settings (``{"train.w_deriv": 0.0, ...}``); empty for noise-free data with
         measured velocities and derivatives.
     """
-    out: dict[str, Any] = {}
-    if is_noisy(dataset):
-        out.update({f"model.{k}": v for k, v in noisy_model_settings(kind).items()})
-    if kind == "fhnn" and dataset.masses_are_gauge:
-        out["model.added_mass"] = "constant"
+    model = model_data_settings(kind, noisy=is_noisy(dataset), masses_are_gauge=dataset.masses_are_gauge)
+    out: dict[str, Any] = {f"model.{k}": v for k, v in model.items()}
     if "derivatives" not in dataset.measured:
         out["train.w_deriv"] = 0.0
         out["train.w_step"] = 1.0
@@ -199,6 +196,17 @@ def noisy_model_settings(kind: str) -> dict[str, Any]:
     return {"slow_weight": 0.0} if kind == "fhnn" else {}
 
 
+def model_data_settings(kind: str, *, noisy: bool, masses_are_gauge: bool) -> dict[str, Any]:
+    """The model settings (field → value) of :func:`data_settings`, from the data's traits:
+    :func:`noisy_model_settings` for noisy observations, and for FHNN on data whose added masses
+    are a gauge (:attr:`~fhnn.data.dataset.Dataset.masses_are_gauge`) the masses held constant.
+    The reproduction's grid applies this before its data sets exist."""
+    out = dict(noisy_model_settings(kind)) if noisy else {}
+    if kind == "fhnn" and masses_are_gauge:
+        out["added_mass"] = "constant"
+    return out
+
+
 def get_plan(name: str) -> TrainingPlan:
     """The plan ``name``; an unknown name is a :class:`ConfigError` listing the plans."""
     if name not in PLANS:
@@ -219,5 +227,6 @@ __all__ = [
     "default_settings",
     "get_plan",
     "is_noisy",
+    "model_data_settings",
     "noisy_model_settings",
 ]
