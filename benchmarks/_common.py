@@ -41,3 +41,28 @@ def stamp() -> dict:
     record = provenance()
     commit = record["commit"] or "unknown"
     return {"commit": commit + ("+dirty" if record["dirty"] else ""), "provenance": record}
+
+
+SEEDS_FILE = Path(__file__).with_name("seeds.toml")
+
+
+def seeds(benchmark: str, role: str) -> list[int]:
+    """The data seeds of ``benchmark`` (a table of ``benchmarks/seeds.toml``) for ``role``,
+    ``"choosing"`` or ``"confirming"``."""
+    import tomllib
+
+    table = tomllib.loads(SEEDS_FILE.read_text())[benchmark]
+    return list(table[role])
+
+
+def check_choosing_seed(benchmark: str, seed: int) -> None:
+    """Stop a script that chooses settings when ``seed`` is one of the confirming seeds."""
+    if seed in seeds(benchmark, "confirming"):
+        raise SystemExit(
+            f"error: data seed {seed} confirms {benchmark} choices (benchmarks/seeds.toml); choose on "
+            f"{seeds(benchmark, 'choosing')}"
+        )
+
+
+#: Where the benchmarks' result files live (each stamped by :func:`stamp`).
+RESULTS = Path(__file__).resolve().parent / "results"

@@ -46,6 +46,7 @@ from pathlib import Path
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+from _common import RESULTS, seeds, stamp
 
 from fhnn.cli.app import main as fhnn
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
@@ -542,6 +543,7 @@ def main() -> None:
     p.add_argument("--set", action="append", default=[], help="NAME=VALUE for fhnn train")
     p.add_argument("--data-seed", type=int, default=0)
     p.add_argument("--skip-speed", action="store_true")
+    p.add_argument("--result", default=None, help="also write benchmarks/results/RESULT.json")
     p.add_argument(
         "--speed-only",
         action="store_true",
@@ -659,8 +661,12 @@ def main() -> None:
         )
     if not args.skip_speed:
         result["import_speed"] = import_speed(out)
+    role = next((r for r in ("choosing", "confirming") if args.data_seed in seeds("own_data", r)), "unlisted")
+    result = {**stamp(), "seed_role": role, **result}
     text = json.dumps(result, indent=2)
     previous.write_text(text)
+    if args.result:
+        (RESULTS / f"{args.result}.json").write_text(text)
     print(text)
     print(
         f"import {import_seconds:.1f} s, noise seen {record['position_noise'] * 1e3:.3f} mm "

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 import equinox as eqx
-from _common import dataset
+from _common import check_choosing_seed, dataset
 
 from fhnn.evaluation.evaluate import evaluate
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
@@ -61,6 +61,7 @@ def main() -> None:
     args = p.parse_args()
     use_compilation_cache(default_cache_dir())
     args.out.mkdir(parents=True, exist_ok=True)
+    check_choosing_seed("reproduction", args.data_seed)
     ds, path = dataset(args.scenario, args.out, args.data_seed)
     settings = get_plan(args.plan or "adam").settings("fhnn")  # no plan: the paper's settings
     if is_noisy(ds):
