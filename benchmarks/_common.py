@@ -66,3 +66,36 @@ def check_choosing_seed(benchmark: str, seed: int) -> None:
 
 #: Where the benchmarks' result files live (each stamped by :func:`stamp`).
 RESULTS = Path(__file__).resolve().parent / "results"
+
+
+class printed_result:
+    """Keep what a benchmark prints as its result file: ``with printed_result("NAME"):`` copies
+    stdout to ``benchmarks/results/NAME.json`` as ``{"commit", "provenance", "argv", "output"}``,
+    written when the block ends without an error."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.lines: list[str] = []
+
+    def write(self, text: str) -> int:
+        self.lines.append(text)
+        return self.stdout.write(text)
+
+    def flush(self) -> None:
+        self.stdout.flush()
+
+    def __enter__(self) -> printed_result:
+        import sys
+
+        self.stdout, sys.stdout = sys.stdout, self
+        return self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        import json
+        import sys
+
+        sys.stdout = self.stdout
+        if kind is None:
+            record = {**stamp(), "argv": sys.argv[1:], "output": "".join(self.lines)}
+            (RESULTS / f"{self.name}.json").write_text(json.dumps(record, indent=1))
+            print(f"wrote benchmarks/results/{self.name}.json")

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _common import dataset
+from _common import RESULTS, dataset, stamp
 
 import fhnn
 from fhnn.evaluation.evaluate import evaluate
@@ -82,6 +82,11 @@ def main() -> None:
         nd = report[name].get("node", {}).get("spec", {}).get("1", {}).get("rmse_pos", np.nan)
         print(f"  Neural ODE / FHNN RMSE at 1 s: {nd / fh:.1f}x (paper: 42x)\n")
     (args.out / "report.json").write_text(json.dumps(report, indent=1, default=float))
+    if args.only is None and set(models) == set(MODELS):  # the whole comparison: a result
+        how = f"every model: the paper's training (Adam, batch 256), {args.steps} steps, its default size"
+        record = {**stamp(), "steps": args.steps, "trained_as": how, **report}
+        (RESULTS / "baselines.json").write_text(json.dumps(record, indent=1, default=float))
+        print("wrote benchmarks/results/baselines.json")
 
 
 if __name__ == "__main__":

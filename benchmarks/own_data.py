@@ -547,7 +547,7 @@ def main() -> None:
     p.add_argument(
         "--speed-only",
         action="store_true",
-        help="only the import speed (written to result_import_speed.json)",
+        help="only the import speed (written to benchmarks/results/import_speed.json)",
     )
     p.add_argument(
         "--reuse-run",
@@ -591,6 +591,7 @@ def main() -> None:
     if args.speed_only:
         speed = import_speed(out)
         (out / "result_import_speed.json").write_text(json.dumps(speed, indent=2))
+        (RESULTS / "import_speed.json").write_text(json.dumps({**stamp(), **speed}, indent=2))
         print(speed_text(speed))
         return
     fine, table, table_clean, data, import_seconds = make_data(

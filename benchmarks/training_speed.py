@@ -48,7 +48,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _common import dataset, seconds_per_call
+from _common import dataset, printed_result, seconds_per_call
 
 import fhnn
 from fhnn.executables import STORE_ENV, StoredProgram
@@ -468,4 +468,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:] in ([], ["--targets"]):  # the default question: its printed answer is the result file
+        with printed_result("training_speed" + ("_targets" if sys.argv[1:] else "")):
+            main()
+    else:
+        main()
