@@ -1,6 +1,6 @@
 """Where an unweighted fit leaves the drag wrong, and what weighting the slow windows does.
 
-Two measurements behind ``model.slow_weight`` (``docs/benchmarks/slow_weight.txt``):
+Two measurements behind ``model.slow_weight`` (``docs/design/data/slow_weight.txt``):
 
 - ``curve``: a trained FHNN run's ``c_q(σ)`` and total drag coefficient ``K = ½ρA c_q σ + c_l``
   against the simulator's truth on a grid of σ at two radii (``steady_vortex``'s law): where the

@@ -38,6 +38,8 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         markdown = markdown.replace(RESULTS_MARK, benchmark_results(root))
     if RECOVERY_MARK in markdown:
         markdown = markdown.replace(RECOVERY_MARK, reproduction_recovery(root))
+    if "<!-- benchmark: " in markdown:
+        markdown = _benchmark_sections(markdown, root)
     if TIMING_MARK in markdown:
         markdown = markdown.replace(TIMING_MARK, reproduction_timing(root))
     return markdown
@@ -134,3 +136,24 @@ def reproduction_timing(root) -> str:
         f"{t['jobs']} jobs: {minutes}{t['job_seconds_total'] / 60:.0f} CPU-minutes of jobs "
         "(`docs/reproduction/timings.json`)."
     )
+
+
+def _benchmark_sections(markdown: str, root) -> str:
+    """Each ``<!-- benchmark: NAME -->`` replaced by ``benchmarks/tables.py``'s rendering of
+    ``benchmarks/results/NAME.json``; a missing file fails the build."""
+    import importlib.util
+    import json
+    import re
+
+    spec = importlib.util.spec_from_file_location("benchmark_tables", root / "benchmarks" / "tables.py")
+    tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tables)
+
+    def one(match: re.Match) -> str:
+        name = match.group(1)
+        path = root / "benchmarks" / "results" / f"{name}.json"
+        if not path.is_file():
+            raise FileNotFoundError(f"docs: no result file {path} for <!-- benchmark: {name} -->")
+        return tables.render(name, json.loads(path.read_text()))
+
+    return re.sub(r"<!-- benchmark: ([a-z0-9_]+) -->", one, markdown)

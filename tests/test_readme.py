@@ -41,87 +41,38 @@ def test_public_names_resolve() -> None:
 
 
 #: The README headline table's row labels: (table, model, horizon in s).
-HEADLINE_ROWS = {
-    "FHNN, 1 s": ("T1", "fhnn", 1),
-    "Neural ODE, 1 s": ("T1", "node", 1),
-    "FHNN, 5 s": ("T2", "fhnn", 5),
-    "HNN, 5 s": ("T2", "hnn", 5),
-    "LNN, 5 s": ("T2", "lnn", 5),
-    "DHN, 5 s": ("T2", "dhn", 5),
-    "FHNN, 60 s": ("T3", "fhnn", 60),
-}
-NUMBER = r"(\d+(?:\.\d+)?(?:e-?\d+)?)"
+def _tables_module():
+    """``benchmarks/tables.py``, which makes the README's results block and the site's tables."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("benchmark_tables", ROOT / "benchmarks" / "tables.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
-def _headline_table() -> dict[str, list[str]]:
+def test_readme_results_are_generated_from_the_reproductions_tables_json() -> None:
+    """The README's results block is exactly what ``benchmarks/regenerate.py`` makes from
+    ``docs/reproduction/tables.json``: a number typed by hand, or a file regenerated without
+    the README, fails here."""
+    tables = _tables_module()
     text = (ROOT / "README.md").read_text()
-    start = text.index("| RMSE(pos) | solid_body_vortex | steady_vortex (actuated) | paper |")
-    rows = {}
-    for line in text[start:].splitlines()[2:]:
-        if not line.startswith("|"):
-            break
-        label, *cells = [c.strip() for c in line.strip("|").split("|")]
-        rows[label] = cells
-    return rows
+    start = text.index(tables.README_BEGIN)
+    block = text[start : text.index(tables.README_END) + len(tables.README_END)]
+    cells = json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())["cells"]
+    assert block == tables.readme_results(cells), "run python benchmarks/regenerate.py"
 
 
-def _records() -> list[dict]:
-    """The cells the reproduction wrote (``docs/reproduction/tables.json``)."""
-    return json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())["cells"]
-
-
-def _same(printed: str, value: float, digits: int) -> bool:
-    """``printed`` is ``value`` rounded to ``digits`` significant digits."""
-    return float(f"{value:.{digits - 1}e}") == float(printed)
-
-
-def test_readme_headline_table_is_the_reproductions_tables_json() -> None:
-    """Every cell of the README's headline table is the cell of ``docs/reproduction/tables.json``
-    (the file the run wrote) it names: mean and std, a median, or the diverged count."""
-    records = _records()
-    rows = _headline_table()
-    assert set(rows) == set(HEADLINE_ROWS)
-    for label, (table, model, horizon) in HEADLINE_ROWS.items():
-        for data, cell in zip(("solid_body_vortex", "steady_vortex"), rows[label][:2], strict=True):
-            (rec,) = [
-                r
-                for r in records
-                if (r["table"], r["data"], r["model"], r["horizon"], r["metric"])
-                == (table, data, model, horizon, "rmse_pos")
-            ]
-            where = f"README '{label}' on {data}: {cell!r} against {rec}"
-            assert float(rows[label][2]) == rec["paper"], where
-            if cell.startswith("diverged"):
-                assert rec["statistic"] == "median" and rec["mean"] is None, where
-                assert f"({rec['diverged']}/{rec['rollouts']} rollouts)" in cell, where
-                continue
-            if cell.startswith("median"):
-                assert rec["statistic"] == "median", where
-                assert f"({rec['diverged']}/{rec['rollouts']} diverged)" in cell, where
-                assert _same(re.match(r"median " + NUMBER, cell).group(1), rec["mean"], 3), where
-                continue
-            mean, std = re.match(NUMBER + r" ± " + NUMBER, cell).groups()
-            assert rec["statistic"] == "mean" and rec["diverged"] == 0, where
-            assert _same(mean, rec["mean"], 3) and _same(std, rec["std"], 2), where
-
-
-def test_readme_t4_sentence_is_the_reproductions_tables_json() -> None:
-    """The README's T4 sentence gives each scenario's FHNN RMSE(pos) at 5 s as the run wrote it,
-    and 'N×' as the paper's number over it (or over the paper's, where it says 'worse')."""
-    records = _records()
-    text = (ROOT / "README.md").read_text()
-    start = text.index("T4 (5 s, against the paper's")
-    sentence = text[start : text.index("\n\n", start)]
-    t4 = [r for r in records if (r["table"], r["model"], r["metric"]) == ("T4", "fhnn", "rmse_pos")]
-    assert len(t4) == 5
-    for rec in t4:
-        match = re.search(
-            rf"`{rec['data']}` {NUMBER}(?: ± {NUMBER})? (?:\({NUMBER}×|— \*\*{NUMBER}× worse)", sentence
-        )
-        assert match, f"README's T4 sentence has no number for {rec['data']}"
-        mean, _, better, worse = match.groups()
-        assert _same(mean, rec["mean"], 3), (rec["data"], mean, rec["mean"])
-        ratio, printed = (
-            (rec["paper"] / rec["mean"], better) if better else (rec["mean"] / rec["paper"], worse)
-        )
-        assert _same(printed, ratio, 2), (rec["data"], printed, ratio)
+def test_readme_headline_rows_name_the_reproductions_cells() -> None:
+    """The block's numbers are the cells' (FHNN at 1 s on solid_body_vortex, as printed)."""
+    tables = _tables_module()
+    cells = json.loads((ROOT / "docs" / "reproduction" / "tables.json").read_text())["cells"]
+    (rec,) = [
+        r
+        for r in cells
+        if (r["table"], r["data"], r["model"], r["horizon"], r["metric"])
+        == ("T1", "solid_body_vortex", "fhnn", 1, "rmse_pos")
+    ]
+    row = next(line for line in tables.headline(cells).splitlines() if line.startswith("| FHNN, 1 s"))
+    mean = float(re.search(r"\| ([0-9.e-]+) ±", row).group(1))
+    assert mean == pytest.approx(rec["mean"], rel=5e-3)

@@ -447,7 +447,7 @@ def test_ray_cluster_gives_the_numbers_of_the_local_executor(tmp_path: Path) -> 
     """Both compile with ``fast_compile``'s XLA flags (local workers set them as they start, Ray
     starts its workers with them): a worker without them would differ in the last bits. Left out
     of the default run; ``benchmarks/quick_reproduction.py --ray`` makes the same check on
-    every job of ``fhnn reproduce --quick`` (``docs/benchmarks/quick_reproduction_ray.txt``)."""
+    every job of ``fhnn reproduce --quick`` (``docs/design/data/quick_reproduction_ray.txt``)."""
     ray = pytest.importorskip("ray")
     config = ReproduceConfig.from_dict({**TWO_JOBS, "fast_compile": True})
     local = reproduce(config, tmp_path / "local", workers=1)  # one worker process, for the flags

@@ -166,6 +166,53 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
         paper_train(track_steps=-1)
 
 
+@pytest.mark.parametrize(
+    ("scores", "kept"),
+    [((1.0, 0.9, 1.1, 0.95, 1.2), 3), ((1.0, 1.1, 1.2, 1.3, 1.4), None), ((1.0, 0.9, 0.8, 0.7, 0.6), 4)],
+    ids=["last-passing-iterate", "none-passes", "every-iterate-passes"],
+)
+def test_the_forecast_guard_keeps_the_last_iterate_that_forecasts_no_worse(
+    tmp_path, monkeypatch, scores, kept
+):
+    """A constructed case whose outcome is known: the validation forecasts of the phase's start
+    and of each of its four iterates are scripted (``scores``); the run's best model is the
+    last iterate scoring no worse than the start (``kept``, 1-based), or, where none does,
+    the model from before the phase."""
+    from fhnn.training import trainer as trainer_module
+
+    script = iter(scores)
+
+    class Scripted:
+        n_forecasts = 1
+
+        def __init__(self, *args, **kwargs) -> None:
+            pass
+
+        def __call__(self, theta) -> float:
+            return next(script)
+
+    monkeypatch.setattr(trainer_module, "ForecastScore", Scripted)
+    ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
+    config = paper_train(steps=4, val_every=2, batch_size=16, track_steps=4)
+    run = Run.create(tmp_path / "fhnn", ds, RunConfig(model=paper_fhnn(width=8), train=config))
+    models = {}
+    state = run.train(
+        ds,
+        callback=lambda s, r: models.update({r["iteration"]: s.model} if r.get("phase") == "tracks" else {}),
+    )
+    tracks = [r for r in state.history if r.get("phase") == "tracks"]
+    assert [r["val_forecast"] for r in tracks] == list(scores[1:])
+    assert tracks[0]["val_forecast_start"] == scores[0]
+    if kept is None:
+        assert state.best_val == min(r["val_total"] for r in state.history if r.get("phase") != "tracks")
+        pairs = zip(arrays(state.best_model), arrays(models[4]), strict=True)
+        assert any(not np.array_equal(np.asarray(a), np.asarray(b)) for a, b in pairs)
+    else:
+        assert state.best_val == tracks[kept - 1]["val_total"]
+        for a, b in zip(arrays(state.best_model), arrays(models[kept]), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
 def test_track_pieces_cover_every_sample_once_and_keep_to_the_budget(monkeypatch):
     """A split within the budget is kept as it is; one over it is cut into pieces of at most
     ``TRACK_PIECE`` samples that together hold every real sample once, in order, at its own

@@ -97,7 +97,7 @@ def import_table(
     forcing: Any = None,
     forcing_hold: str = "linear",
 ) -> Dataset:
-    """A data set from a table of measured trajectories, as ``fhnn import`` makes it.
+    """A data set from a table of observed trajectories, as ``fhnn import`` makes it.
 
     Args:
         table: a .csv or .parquet path, or a ``pandas.DataFrame``, with columns ``traj_id, t, x,

@@ -139,7 +139,7 @@ def import_table(
     forcing_hold: ForcingHoldOption = "linear",
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
-    """Import measured trajectories from a table into a data set: rows in any order, irregular times,
+    """Import observed trajectories from a table into a data set: rows in any order, irregular times,
     unequal lengths; rows with missing values are dropped and counted; a trajectory with a long gap
     (--max-gap) becomes pieces; glitches (--outliers) are dropped and counted; velocities the table
     lacks are estimated from the positions (a smoother held to the noise level they show).

@@ -108,7 +108,7 @@ def summary(info: dict[str, Any], path: str) -> None:
     )
     body = info["body_params"]
     record = info["imported"]
-    if record:  # a user's measurements: what was measured, estimated, dropped
+    if record:  # a user's measurements: what was recorded, estimated, dropped
         _imported(record, body)
         vel_noise, vel_error = record["velocity_noise"], record.get("velocity_error")
         stdout.print(
@@ -146,7 +146,7 @@ def _splits(info: dict[str, Any]) -> None:
     for name, s in splits.items():
         sizes.add_row(name, str(s["n_traj"]), str(s["samples"]), str(s["n_times"]), fmt(s["duration"]))
     stdout.print(sizes)
-    states = "observed states" if info["imported"] else "clean states"  # no truth in measured data
+    states = "observed states" if info["imported"] else "clean states"  # no truth in observed data
     cover = Table(title=f"coverage of the {states} (min – max)", title_justify="left")
     cover.add_column("quantity")
     for name in splits:

@@ -27,7 +27,7 @@ def train(
         str | None,
         typer.Option(
             help=f"Training plan: {'|'.join(PLANS)} (its training settings and the model settings it "
-            f"was measured with; noisy observations turn the FHNN's slow-window weights off; --set "
+            f"was chosen with; noisy observations turn the FHNN's slow-window weights off; --set "
             f"wins; see README) "
             f"[default: {DEFAULT_PLAN}; {ESTIMATED_VELOCITY_PLAN} on data with estimated velocities]"
         ),

@@ -15,7 +15,7 @@ from fhnn.errors import ConfigError
 #: median step. Training rolls RK4 one step per interval; on issue 14's tracks (``steady_vortex``
 #: observed every 0.05 s) one step's position error is at most 8.0e-6 m over 10 steps' time
 #: (0.5 s), 2.2e-4 m over 20 and 5.7e-3 m over 40, against 1 mm of noise
-#: (``benchmarks/gap_steps.py``, ``docs/benchmarks/gap_steps.txt``).
+#: (``benchmarks/gap_steps.py``, ``docs/design/data/gap_steps.txt``).
 GAP_STEPS = 10.0
 #: ``--outliers``' default: a position more than this many noise levels from the cubic through its
 #: two neighbours either side is a glitch and is dropped (:func:`drop_outliers`). Pure noise goes

@@ -186,7 +186,7 @@ def table_to_dataset(
     series = position_series(trajs)
     smoother = choose_smoother(settings.smoother, table.rows)
     vel_noise = vel_error = None
-    if has_vel:  # the acceleration of each measured velocity
+    if has_vel:  # the acceleration of each recorded velocity
         velocities = [(tr.t, tr.vel[:, k]) for tr in trajs for k in range(2)]
         vel_noise = noise_level(velocities)
         rates = smooth_derivatives(velocities, vel_noise, smoother)

@@ -19,7 +19,7 @@ Version 2 adds what imported measurements need (version 1 files, written before,
 they are): per-trajectory times ``t`` of shape ``(N, T)`` and ``lengths`` for trajectories of
 unequal length — samples past a trajectory's length are padding (times continue increasing, the
 other arrays repeat its last sample) that no loss or metric reads — and the root attribute
-``measured`` (JSON list, a subset of :data:`MEASURABLE`) naming which fields were measured; the
+``measured`` (JSON list, a subset of :data:`MEASURABLE`) naming which fields were recorded; the
 others were estimated (:mod:`fhnn.data.table`). A data set without it was simulated: every field
 is the truth. An imported data set has ``scenario = "imported"`` and ``body_params`` holding the
 known constants ``M, rho, A, V`` only: its flow and coefficients are what a model is to find.
@@ -54,7 +54,7 @@ FORMAT_VERSION = 2
 OLDEST_FORMAT_VERSION = 1
 #: ``scenario`` of a data set made from a user's measurements (no known flow or coefficients).
 IMPORTED = "imported"
-#: Fields a data set may have measured rather than estimated (attribute ``measured``).
+#: Fields a data set may have recorded rather than estimated (attribute ``measured``).
 MEASURABLE = ("positions", "velocities", "forces", "derivatives")
 SPLITS = ("train", "val", "test")
 ARRAYS = ("t", "states", "states_clean", "derivs", "forces", "actuation")
@@ -243,7 +243,7 @@ class Dataset:
 
     @property
     def measured(self) -> tuple[str, ...]:
-        """The fields measured (the others were estimated); all of :data:`MEASURABLE` for
+        """The fields recorded (the others were estimated); all of :data:`MEASURABLE` for
         simulated data."""
         return tuple(self.extra.get("measured", MEASURABLE))
 
@@ -268,7 +268,7 @@ class Dataset:
 
     @property
     def known_forcing(self) -> bool:
-        """Whether the training data carry measured, non-zero external forces: only then are the
+        """Whether the training data carry recorded, non-zero external forces: only then are the
         added masses and drag coefficients determined, not just their ratios ``c / (M + m_a)``."""
         train = self.train
         return "forces" in self.measured and bool(np.any(train.forces[train.mask] != 0))

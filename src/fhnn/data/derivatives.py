@@ -20,7 +20,7 @@ make a data set of it:
     :data:`CHUNK`.
 
 The default, ``"auto"`` (:func:`choose_smoother`), is the spline up to :data:`AUTO_SPLINE_ROWS`
-rows and the Kalman smoother above. What was measured to choose the estimators and the default:
+rows and the Kalman smoother above. What chose the estimators and the default:
 design note ``docs/design/smoothers.md``.
 """
 
@@ -354,7 +354,7 @@ AUTO = "auto"
 #: sampled at 0.05 s ± 30 %: 1.0 / 3.0 / 8.8 / 23 ms for 250 / 500 / 1,000 / 2,000 samples; of a
 #: smooth track with 1 mm noise 0.5 / 2.0 / 4.8 / 8.4 ms), so 200,000 rows (two series each) take
 #: at most ~5 s in it; 2 million rows took 66 s against 5.8 s for the Kalman smoother
-#: (``docs/benchmarks/own_data.json``, before this choice was the default).
+#: (``docs/design/data/own_data.json``, before this choice was the default).
 AUTO_SPLINE_ROWS = 200_000
 
 

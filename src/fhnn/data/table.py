@@ -1,4 +1,4 @@
-"""A user's measured trajectories, from a CSV or Parquet table into a data set (``fhnn import``).
+"""A user's observed trajectories, from a CSV or Parquet table into a data set (``fhnn import``).
 
 The table has one row per sample, in any order, with the columns (SI units throughout):
 

@@ -454,7 +454,7 @@ def predict_tracks(
     """Forecast ``duration`` [s] on a grid of about ``dt`` [s], either from one given ``initial``
     state ``(4,)`` at ``t0`` [s] (track id ``"initial"``), or from the end of each track of an
     observed ``history`` (a :class:`~fhnn.data.table.Table`), its state there estimated by
-    :func:`estimate_states` from its last ``fit_window`` seconds (its measured velocities, if
+    :func:`estimate_states` from its last ``fit_window`` seconds (its observed velocities, if
     any, are the first guess; its ``Fx, Fy``, else the forcing table where it covers them, are the
     forces during the fit). Forces during the forecast come from ``forcing_table``
     (:func:`~fhnn.data.table.read_forcing`), which must then cover it; without one there are none.

@@ -63,7 +63,7 @@ def flow_figure(
     """Three panels over the training region at time ``t``: the true and the learned flow (speed
     as colour on one shared scale, streamlines), and the error ``|u_θ − u|``; the outline marks
     where the training data lie (within 0.25 m of a training position), the only place where the
-    learned flow is measured rather than extrapolated. Without a truth (imported data): the
+    learned flow is pinned by the samples rather than extrapolated. Without a truth (imported data): the
     learned flow alone."""
     pos = dataset.train.states_clean[dataset.train.mask][:, :2]
     lo, hi = pos.min(axis=0), pos.max(axis=0)
@@ -108,7 +108,7 @@ def flow_figure(
 
 
 def learned_origin(eom: EquationsOfMotion | None) -> np.ndarray | None:
-    """The point [m] a model's ``r`` is measured from, where it is not the coordinate origin."""
+    """The point [m] a model's ``r`` is taken from, where it is not the coordinate origin."""
     if eom is None or eom.origin is None or not np.any(np.asarray(eom.origin)):
         return None
     return np.asarray(eom.origin)

@@ -95,34 +95,11 @@ def _model_options() -> type[Config]:
 
 ModelOptions = _model_options()
 
-#: Wall-clock budget [s] of every gradient-trained job's training (``train.max_time``), sized to the
-#: hour a full run may take on 2 workers: at 60 s it took 44 min 14 s (17c9180) with the budget
-#: ending every FHNN polish (at 5,547-8,650 of its 10,000 iterations) and 69 of the 87 jobs
-#: spending all of it. A job keeps its model of least validation loss along one path that a budget
-#: only cuts, so more budget keeps one as good or better; at 75 s those jobs take ~9 min more,
-#: ~53 min in all.
+#: Wall-clock budget [s] of every gradient-trained job's training (``train.max_time``).
 JOB_SECONDS = 75.0
-#: Adam steps of the reproduction (the default plan: 20,000), sized to end inside the share of the
-#: budget the phases before the polish get (an FHNN Adam step: ~2.5 ms, ~5 ms on ``wave`` with its
-#: Morison term, two jobs at a time on 2 cores): Adam cut by the budget ends at a learning rate it
-#: never decayed. Chosen on the validation loss, data seed 0, budget 60 s, polish up to 1,200:
-#: 6,000 steps against 4,000 — obstacle 1.82e-5 -> 1.02e-5, wave 4.40e-7 -> 3.44e-7,
-#: time_varying_vortex 1.49e-6 -> 1.44e-6, steady_vortex 2.30e-7 -> 1.94e-7, noisy_flow 3.90e-5 ->
-#: 3.83e-5; at 8,000 and 12,000 the budget cut Adam on wave and time_varying_vortex. With the plan's
-#: polish of up to 5,000 (which the budget cut), 3,000 steps against 6,000 were mixed: steady
-#: 1.77e-8 against 2.20e-8, time_varying 7.9e-7 against 4.9e-7, noisy_flow 3.3e-5 against 4.0e-5,
-#: obstacle 3.92e-6 against 3.99e-6 (docs/benchmarks/plan_selection.txt, G).
+#: Adam steps of the reproduction (the default plan: 20,000).
 JOB_ADAM_STEPS = 6000
-#: Training pairs of the quasi-Newton phases in the reproduction (the default plan: 4,000): the budget cuts
-#: most FHNN polishes short of the plan's 10,000 iterations, and on fewer pairs an iteration is cheaper (4.95
-#: against 7.27 ms alone on 2 cores, benchmarks/lbfgs_overhead.py; the optimiser's own work does not shrink
-#: with the pairs), so the polish gets further in the full run. Chosen on the validation loss under the budget
-#: (60 s, 6,000 Adam steps, two jobs at a time), data seed 0, 2,000 against 4,000 pairs: steady_vortex 1.98e-8
-#: against 2.20e-8, time_varying_vortex 3.84e-7 / 4.88e-7, obstacle 9.6e-7 / 4.0e-6, wave 1.05e-7 / 3.3e-7,
-#: solid_body_vortex 4.0e-10 / 2.7e-9, noisy_flow 4.14e-5 / 4.00e-5; data seed 1 (not used to choose): steady
-#: 1.52e-7 / 1.47e-7, time_varying 9.1e-7 / 1.04e-6, obstacle 1.88e-7 / 2.30e-7, wave 4.9e-7 / 9.3e-7, solid
-#: 6.8e-11 / 7.5e-11. Without a budget 4,000 pairs are better on all six scenarios
-#: (docs/benchmarks/plan_selection.txt, I), so the plan keeps them.
+#: Training pairs of the quasi-Newton phases in the reproduction (the default plan: 4,000).
 JOB_LBFGS_PAIRS = 2000
 
 

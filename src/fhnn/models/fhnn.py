@@ -15,7 +15,7 @@ Beyond the paper, each a setting of :class:`FHNNConfig`: ``c_l`` one learned con
 ``c_l`` and ``c_q(σ)``; added masses held constant where the data leave them a free gauge
 (``added_mass``); a learned linear far field beside the MLP (``far_field``); a harmonic basis in
 time for a time-dependent flow (``time_modes``); the coefficients held at the edge of the training
-radii (``r_extrapolation``); positions measured from the data's centre (``centre``). Why each, and
+radii (``r_extrapolation``); positions taken from the data's centre (``centre``). Why each, and
 what it gains: the design note ``docs/design/model.md``.
 
 Known body constants ``M, ρ, A, V`` come from the data set. Ablations (paper Table "ablation"):
@@ -114,7 +114,7 @@ class FHNNConfig(Config):
     observations; data with observation noise set 0 (:func:`~fhnn.training.plans.data_settings`); 2
     settles it on ``steady_vortex`` but not on every scenario (design note docs/design/model.md)."""
     centre: Literal["data", "origin"] = "data"
-    """Where the flow net's inputs and the coefficients' ``r`` are measured from: "data" (the data
+    """Where the flow net's inputs and the coefficients' ``r`` are taken from: "data" (the data
     set's :attr:`~fhnn.data.dataset.Dataset.centre`: the mean training position of imported data, the
     coordinate origin of a simulated scenario), which makes a model of imported data independent of
     where the table's origin lies; or "origin" (the table's coordinate origin)."""
@@ -334,7 +334,7 @@ class FHNN(AbstractVectorField):
         parameters, few enough for the whole-track fit's dense Gauss–Newton solve, and the ones
         the drag split and the flow's large-scale error move along (on issue 14's data, data
         seed 1, ``fhnn train``'s 20 iterations took ``c_l`` from 8.1 to 0.84 % off,
-        ``docs/benchmarks/own_data_seed1_tracks20.json``). ``None`` for a
+        ``docs/design/data/own_data_seed1_tracks20.json``). ``None`` for a
         flow that is not a :class:`StreamNet` or a coefficient law that is not a
         :class:`CoefficientNet`."""
         coef, flow = self.coefficients, self.flow
@@ -442,10 +442,10 @@ def build_fhnn(
         time_scale: typical duration [s] (input scaling of t).
         r_range: (min, max) radius of the training positions [m]; used by ``r_extrapolation="hold"``
             where the coefficients are functions of r (``coefficients_in_r``).
-        centre: the point [m] that ``r`` and the flow net's inputs are measured from with
+        centre: the point [m] that ``r`` and the flow net's inputs are taken from with
             ``config.centre = "data"`` (None: the coordinate origin); ``length_scale`` and
-            ``r_range`` are measured from it too.
-        about_origin: ``length_scale`` and ``r_range`` measured from the coordinate origin,
+            ``r_range`` are taken from it too.
+        about_origin: ``length_scale`` and ``r_range`` taken from the coordinate origin,
             used in their place with ``config.centre = "origin"``.
         key: PRNG key.
     """

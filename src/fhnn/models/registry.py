@@ -156,7 +156,7 @@ MODELS = Registry(
             fhnn_arguments,
             variants=ABLATIONS,
             # runs stored before the harmonic time basis had the paper's ψ(x, y, t); before the
-            # data-derived centre, r was measured from the table's origin
+            # data-derived centre, r was taken from the table's origin
             stored_defaults={"time_modes": 0, "centre": "origin"},
         ),
         ModelKind("node", "Neural ODE", "MLP (s, F) → ṡ", MLPConfig, _baseline("node"), data_statistics),

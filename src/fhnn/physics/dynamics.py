@@ -40,7 +40,7 @@ class EquationsOfMotion(eqx.Module):
         volume: displaced volume V [m³] (Morison term only).
         fluid_inertia: include the Morison force ``(ρV + m_a,i)(Du/Dt)_i``.
         eps: ε in ``σ = ‖v_rel‖ + ε`` [m/s].
-        origin: the point ``x₀`` [m], shape ``(2,)``, that ``r`` is measured from (None: the
+        origin: the point ``x₀`` [m], shape ``(2,)``, that ``r`` is taken from (None: the
             coordinate origin).
     """
 

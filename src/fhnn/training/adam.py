@@ -273,7 +273,7 @@ def _adam_phase(
     skipped = jnp.asarray([s.skipped for s in states])  # (members,), also for one
     active = list(range(len(trainers)))
     saved = tick = time.monotonic()
-    per_step = 0.0  # measured seconds per step (per chunk), for the chunks' length
+    per_step = 0.0  # timed seconds per step (per chunk), for the chunks' length
     measured: set[str] = set()
     i = states[0].step
     while i < until:

@@ -104,7 +104,7 @@ PLANS: dict[str, TrainingPlan] = {
 }
 
 #: The plan a new run starts from when none is named and the data's velocities were estimated
-#: (:func:`default_settings`); :func:`data_settings` then sets the multi-step loss, measured so.
+#: (:func:`default_settings`); :func:`data_settings` then sets the multi-step loss.
 ESTIMATED_VELOCITY_PLAN = "adam"
 
 
@@ -121,13 +121,13 @@ ESTIMATED_VELOCITY_LR_C_L = 10.0
 
 
 def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
-    """Training settings that a data set's measured fields call for (``fhnn train`` applies them
+    """Training settings that a data set's recorded fields call for (``fhnn train`` applies them
     above a plan and below any setting given), for a model of ``kind``:
 
     - FHNN without known forcing (:attr:`~fhnn.data.dataset.Dataset.masses_are_gauge`): the added
       masses held to two constants (``model.added_mass="constant"``): only ``c / (M + m_a)`` is
       determined by such data.
-    - derivatives estimated, not measured: no derivative loss (``train.w_deriv=0``), the one-step
+    - derivatives estimated, not recorded: no derivative loss (``train.w_deriv=0``), the one-step
       loss on (``train.w_step=1``).
     - velocities estimated too: the multi-step loss on positions over windows of
       :data:`ESTIMATED_VELOCITY_SHOOT` samples in batches of 32, no one-step loss, 4,000 Adam
@@ -144,7 +144,7 @@ def data_settings(dataset: Dataset, kind: str = "fhnn") -> dict[str, Any]:
 
     Returns:
         Dotted settings (``{"train.w_deriv": 0.0, ...}``); empty for noise-free data with
-        measured velocities and derivatives.
+        recorded velocities and derivatives.
     """
     model = model_data_settings(kind, noisy=is_noisy(dataset), masses_are_gauge=dataset.masses_are_gauge)
     out: dict[str, Any] = {f"model.{k}": v for k, v in model.items()}
@@ -192,7 +192,7 @@ def noisy_model_settings(kind: str) -> dict[str, Any]:
     """Model settings (field → value) that observations with noise call for: FHNN windows not
     weighted by their slowness (``slow_weight`` 0). On ``noisy_flow`` the weighting was worse
     than none (m_ay 0.33 → 2.28 %, c_l 2.11 → 4.09 % off on a second job seed), while on the
-    noise-free data sets it settled the drag split (``docs/benchmarks/slow_weight.txt``)."""
+    noise-free data sets it settled the drag split (``docs/design/data/slow_weight.txt``)."""
     return {"slow_weight": 0.0} if kind == "fhnn" else {}
 
 

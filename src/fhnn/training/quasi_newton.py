@@ -46,8 +46,7 @@ def quasi_newton_step(
     as ``jax.flatten_util.ravel_pytree(like)`` lays out ``like`` (the parameters' pytree; only its
     structure, shapes and dtypes matter). On one vector each of the optimiser's operations (the
     two-loop recursion over the memory, the line search's updates) is one operation, not one per
-    leaf of the model (30 for the FHNN): an iteration at 4,000 pairs took 7.27 against 10.93 ms on
-    the 2-core CPU, its objective and gradient 4.79 ms (``benchmarks/lbfgs_overhead.py``)."""
+    leaf of the model (30 for the FHNN)."""
     opt = optax.lbfgs(memory_size=config.lbfgs_memory)
     unravel = ravel_pytree(like)[1]
 

@@ -50,6 +50,6 @@ def run_together(
     time budget each member is charged its share of the group's time (the wall time over the members
     training), so a member's budget buys the steps it would alone. Against sequential members this trades
     nothing but the order of floating-point sums; for the throughput it buys see
-    ``docs/benchmarks/training_speed*.txt``."""
+    ``docs/design/data/training_speed*.txt``."""
     _adam_phase(trainers, states, callbacks, checkpoints, trainers[0].config.steps, checkpoint_seconds)
     return states

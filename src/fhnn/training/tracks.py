@@ -3,8 +3,7 @@
 Windows of a few seconds hold little on how the drag splits between its linear and quadratic
 parts (``c_l`` is the σ → 0 limit of the total drag, which the tracks' long-time behaviour
 tells); whole tracks hold it, but along a valley so flat that first-order fits do not move along
-it: L-BFGS on whole tracks (``benchmarks/own_data_longer_windows.py known-flow``) moved ``c_l``'s
-raw parameter by 2e-7 in 100 iterations. This phase solves the Gauss–Newton normal equations instead,
+it (L-BFGS on whole tracks hardly moves ``c_l``). This phase solves the Gauss–Newton normal equations instead,
 on a subspace a dense solve can afford — the parameters the model names
 (:meth:`~fhnn.models.base.AbstractModel.track_parameters`; FHNN: the output layers of both nets,
 the constant ``c_l`` and the far-field flow) — together with every track's start state

@@ -29,8 +29,8 @@ class TrainConfig(Config):
 
     config_name = "training"
 
-    # The defaults are what ``fhnn train`` trains on noise-free data with measured derivatives
-    # (the ``auto`` plan; the measurements that chose them: docs/benchmarks/plan_selection.txt).
+    # The defaults are what ``fhnn train`` trains on noise-free data with recorded derivatives
+    # (the ``auto`` plan; the measurements that chose them: docs/design/data/plan_selection.txt).
     # A plan (fhnn.training.plans.PLANS) or the data (plans.data_settings) change named fields.
     steps: int = 20000
     """Adam steps (0: quasi-Newton phases only)."""
@@ -44,8 +44,8 @@ class TrainConfig(Config):
     """Factor at each boundary."""
     w_deriv: float = 1.0
     """Weight of the derivative loss."""
-    # measured derivatives make the one-step loss redundant on clean data and a noise amplifier
-    # on noisy data; data without measured derivatives turn it on (plans.data_settings)
+    # recorded derivatives make the one-step loss redundant on clean data and a noise amplifier
+    # on noisy data; data without recorded derivatives turn it on (plans.data_settings)
     w_step: float = 0.0
     """Weight of the one-step loss."""
     # the flow penalty (formerly 1e-6, annealed) was within 2 % of none on the validation loss of
@@ -64,7 +64,7 @@ class TrainConfig(Config):
     """Quasi-Newton iterations on the model's warm-up parameters before Adam."""
     # 20,000 Adam steps and a polish of 10,000 were chosen on the validation loss of data seed 0
     # and confirmed on seed 1: lower or tied on all six scenarios against 12,000 / 5,000
-    # (docs/benchmarks/plan_selection.txt, G and K)
+    # (docs/design/data/plan_selection.txt, G and K)
     lbfgs_steps: int = 10000
     """Quasi-Newton polish iterations after Adam (0: none)."""
     track_steps: int = 0
@@ -100,7 +100,7 @@ class TrainConfig(Config):
     """Samples per example of the multi-step (multiple-shooting) loss on positions (0 or 2: off). With
     ``k ≥ 3`` every example is ``k`` consecutive samples of a trajectory, each with its own times: RK4
     from the first, one step per sample interval, and the predicted positions are compared with the
-    observed ones at every later sample — a loss that needs neither measured velocities nor
+    observed ones at every later sample — a loss that needs neither recorded velocities nor
     derivatives (``fhnn train`` turns it on for data whose velocities were estimated)."""
     w_shoot: float = 1.0
     """Weight of the multi-step loss."""

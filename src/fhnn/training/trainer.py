@@ -405,8 +405,7 @@ class Trainer:
 
         qn_cfg = cfg.only(QUASI_NEWTON_FIELDS)
         # the vector and the optimiser's state are donated to each iteration's outputs, so the
-        # ~7 MB memory is updated in place, not copied (an iteration at 2,000 pairs 5.14 against
-        # 5.42 ms on the 2-core CPU, benchmarks/lbfgs_overhead.py; the same bits); each leaf needs
+        # ~7 MB memory is updated in place, not copied (the same bits); each leaf needs
         # a buffer of its own for that (optax's zeros may share one) and ``start`` must keep its own
         flat = jnp.array(flat, copy=True)
         opt_state = jax.tree.map(

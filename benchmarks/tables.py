@@ -1,0 +1,331 @@
+"""The Markdown the documentation shows from the result files, made at site build time
+(``docs/hooks.py``) and for the README (``benchmarks/regenerate.py``); never typed by hand.
+
+Each ``render_NAME(record)`` turns ``benchmarks/results/NAME*.json`` into Markdown; a result file
+without a renderer of its own is shown by :func:`render_printed` (what its script printed) or
+:func:`render_numbers` (its numbers, flattened)."""
+
+from __future__ import annotations
+
+import json
+import math
+import textwrap
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+
+
+def _g(value: float | None, digits: int = 3) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    if value == 0 or 1e-2 <= abs(value) < 1e4:
+        return f"{value:.{digits}g}"
+    mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
+def _ratio(value: float) -> str:
+    """Two significant digits, without an exponent (330, 68, 2.1)."""
+    return f"{float(f'{value:.2g}'):g}"
+
+
+def _pct(value: float | None, digits: int = 2) -> str:
+    return "—" if value is None else f"{100 * value:.{digits}g} %"
+
+
+def _table(header: list[str], rows: list[list[str]], right: int = 1) -> str:
+    align = ["---"] * right + ["---:"] * (len(header) - right)
+    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(align) + " |"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def stamp_line(record: dict[str, Any], name: str) -> str:
+    """Which file, which commit and code, which machine, when."""
+    made = record.get("provenance") or {}
+    machine = made.get("machine") or {}
+    return (
+        f"*From `benchmarks/results/{name}.json`: commit `{str(made.get('commit'))[:10]}`, source "
+        f"`{made.get('source')}`, {machine.get('cpu', '?')} ({machine.get('cores', '?')} cores), "
+        f"{str(made.get('date', ''))[:10]}.*"
+    )
+
+
+def render_fhnn_targets(record: dict[str, Any]) -> str:
+    """FHNN as ``fhnn train`` trains it by default against the accuracy and recovery targets."""
+    targets = record["targets"]
+    rows = []
+    for scenario in ("solid_body_vortex", "steady_vortex"):
+        if scenario not in record:
+            continue
+        res = record[scenario]
+        for h, target in targets[scenario]["rmse_pos"].items():
+            value = res["metrics"][h]["rmse_pos"]
+            rows.append(
+                [
+                    scenario,
+                    f"RMSE(pos) at {h} s [m]",
+                    _g(value),
+                    _g(target),
+                    "met" if value <= target else "missed",
+                ]
+            )
+        if "coefficients" in res:
+            limit = targets[scenario]["coefficients_max_rel"]
+            for name in ("m_ax", "m_ay", "c_l", "c_q"):
+                value = res["coefficients"][name]["max_rel"]
+                rows.append(
+                    [
+                        scenario,
+                        f"{name}, largest relative error",
+                        _pct(value),
+                        _pct(limit),
+                        "met" if value <= limit else "missed",
+                    ]
+                )
+            value, limit = res["flow"]["rel_l2"], targets[scenario]["flow_rel_l2"]
+            rows.append(
+                [
+                    scenario,
+                    "flow, relative L2",
+                    _pct(value),
+                    _pct(limit),
+                    "met" if value <= limit else "missed",
+                ]
+            )
+        rows.append(
+            [
+                scenario,
+                "training time [s]",
+                f"{res['seconds']:.0f}",
+                "600",
+                "met" if res["seconds"] <= 600 else "missed",
+            ]
+        )
+    return _table(["data", "quantity", "ours", "target", ""], rows, right=2)
+
+
+#: The own-data benchmark's targets (issue 14's): mean relative error of each coefficient, the
+#: flow's relative L2 error, and RMSE(pos) of ``fhnn predict`` at 5 s against the truth [m].
+OWN_DATA_TARGETS = {"coefficients": 0.03, "flow": 0.02, "forecast_5s": 5e-3}
+
+
+def render_own_data(record: dict[str, Any]) -> str:
+    """One own-data run: what the import saw, recovery against the truth, forecasts."""
+    t = OWN_DATA_TARGETS
+    rows = [
+        ["position noise seen [mm] (true 1 mm)", _g(1e3 * record["position_noise_seen"]), ""],
+        ["velocity RMS error [mm/s]", _g(1e3 * record["velocity_rms_error"]), ""],
+    ]
+    for name, value in record["coefficients_mean_rel"].items():
+        rows.append([f"{name}, mean relative error", _pct(value), _pct(t["coefficients"])])
+    for name, value in record["ratios_mean_rel"].items():
+        rows.append([f"{name}, mean relative error", _pct(value), ""])
+    rows.append(["flow, relative L2", _pct(record["flow_rel_l2"]), _pct(t["flow"])])
+    forecast = record["test_forecasts"]["rmse_pos_vs_truth"]
+    rows.append(["`fhnn predict`, RMSE(pos) at 1 s [m]", _g(forecast["1"]), ""])
+    rows.append(["`fhnn predict`, RMSE(pos) at 5 s [m]", _g(forecast["5"]), _g(t["forecast_5s"])])
+    rows.append(["training time [s]", _g(record["train_seconds"]), ""])
+    return _table(["quantity", "ours", "target"], rows)
+
+
+def render_held_thrust(record: dict[str, Any]) -> str:
+    """Held thrust against forces logged at the samples: forecast errors at 5 and 15 s (median
+    over the test tracks, against the truth), and the band check on validation tracks."""
+    labels = {"held": "thrust held between switches", "logged": "forces logged at the samples"}
+    forecasts = {
+        "forecast_mm_held_switches": "held switch times",
+        "forecast_mm_logged_forces": "logged, interpolated",
+    }
+    rows = []
+    for key, run in record["runs"].items():
+        band = run["band_check"]
+        for field, how in forecasts.items():
+            if field in run:
+                rows.append(
+                    [
+                        labels.get(key, key),
+                        how,
+                        _g(run[field]["5 s"]),
+                        _g(run[field]["15 s"]),
+                        f"{band['coverage']:.0%} → widened {band['scale']:.2f}×",
+                    ]
+                )
+    header = ["trained on", "forecast forcing", "5 s [mm]", "15 s [mm]", "90 % band held (validation)"]
+    return _table(header, rows, right=2)
+
+
+def render_time_budget(record: dict[str, Any]) -> str:
+    """``--max-time`` against the wall clock of the whole command."""
+    rows = [
+        [
+            f"`{case['command']}`",
+            f"{case['budget']:.0f}",
+            f"{case['seconds']:.1f}",
+            f"{case['bound']:.0f}",
+            "within" if case["within"] else "over",
+        ]
+        for case in record["cases"].values()
+    ]
+    return _table(["command", "budget [s]", "took [s]", "bound [s]", ""], rows)
+
+
+def render_baselines(record: dict[str, Any]) -> str:
+    """Every model under the same training, RMSE(pos) at 1 and 5 s."""
+    rows = []
+    for scenario in ("solid_body_vortex", "steady_vortex"):
+        for kind, res in record.get(scenario, {}).items():
+            cells = []
+            for h in ("1", "5"):
+                m = res["spec"][h]
+                text = _g(m["rmse_pos"])
+                if m.get("diverged"):
+                    text += f" ({m['diverged']} div.)"
+                cells.append(text)
+            rows.append([scenario, kind, *cells, f"{res['seconds']:.0f}"])
+    caption = f"*Trained as: {record['trained_as']}; no model's size or plan was tuned for this table.*"
+    return (
+        _table(["data", "model", "RMSE(pos) 1 s [m]", "RMSE(pos) 5 s [m]", "train [s]"], rows, right=2)
+        + "\n\n"
+        + caption
+    )
+
+
+def render_frame_invariance(record: dict[str, Any]) -> str:
+    """The default pipeline on the same tracks moved, turned or drawn again, against the original."""
+    rows = [
+        [variant, _pct(d["flow"]), _pct(d["coefficients"]), _pct(d["forecast"])]
+        for variant, d in record["relative_difference_to_original"].items()
+    ]
+    return _table(["against the original run", "flow", "coefficients", "forecast"], rows)
+
+
+def render_reproduction(record: dict[str, Any]) -> str:
+    """A reproduction's T4 (FHNN RMSE(pos) at 5 s per scenario, the paper beside) and T6
+    (largest relative error of each coefficient and the flow, mean ± std over the seeds)."""
+    cells = record["cells"]
+    metrics = ("m_ax", "m_ay", "c_l", "c_q", "flow")
+    rows: dict[str, dict[str, str]] = {}
+    for r in cells:
+        if (r["table"], r["model"], r["metric"]) == ("T4", "fhnn", "rmse_pos"):
+            text = (
+                f"{_g(r['mean'])} ± {_g(r['std'], 2)}"
+                if r["statistic"] == "mean"
+                else f"median {_g(r['mean'])}"
+            )
+            rows.setdefault(r["data"], {})["T4"] = f"{text} ({_g(r['paper'])})"
+        if r["table"] == "T6" and r["metric"] in metrics and r["mean"] is not None:
+            text = f"{_g(100 * r['mean'], 2)} ± {_g(100 * r['std'], 2)}"
+            if r["diverged"]:
+                text += f" ({r['diverged']}/{r['rollouts']} seeds non-finite)"
+            rows.setdefault(r["data"], {})[r["metric"]] = text
+    header = ["data", "RMSE(pos) 5 s [m] (paper)", *(f"{m} [%]" for m in metrics)]
+    body = [[d, row.get("T4", "—"), *(row.get(m, "—") for m in metrics)] for d, row in rows.items()]
+    return _table(header, body)
+
+
+def render_printed(record: dict[str, Any]) -> str:
+    """What the script printed."""
+    return "```text\n" + record["output"].rstrip() + "\n```"
+
+
+def _leaves(value: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    if isinstance(value, dict):
+        out = []
+        for k, v in value.items():
+            if k not in ("provenance", "commit"):
+                out += _leaves(v, f"{prefix}.{k}" if prefix else str(k))
+        return out
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [(prefix, value)]
+    return []
+
+
+def render_numbers(record: dict[str, Any]) -> str:
+    """Every number of the file, by its key."""
+    return _table(["key", "value"], [[f"`{k}`", _g(v, 4)] for k, v in _leaves(record)])
+
+
+def render(name: str, record: dict[str, Any]) -> str:
+    """The Markdown of result file ``name`` (without ``.json``)."""
+    base = (
+        "own_data"
+        if name.startswith("own_data")
+        else "fhnn_targets"
+        if name.startswith("fhnn_targets")
+        else name
+    )
+    if f"render_{base}" in globals():
+        body = globals()[f"render_{base}"](record)
+    elif "output" in record:
+        body = render_printed(record)
+    else:
+        body = render_numbers(record)
+    return body + "\n\n" + stamp_line(record, name)
+
+
+def result(name: str) -> dict[str, Any]:
+    """``benchmarks/results/NAME.json``."""
+    return json.loads((RESULTS / f"{name}.json").read_text())
+
+
+def headline(tables: list[dict[str, Any]]) -> str:
+    """The README's results table from the reproduction's cells (``docs/reproduction/tables.json``):
+    FHNN and the paper's baselines, RMSE(pos) at 1, 5 and 60 s on the two main data sets."""
+    rows_spec = [
+        ("FHNN, 1 s", "T1", "fhnn", 1),
+        ("Neural ODE, 1 s", "T1", "node", 1),
+        ("FHNN, 5 s", "T2", "fhnn", 5),
+        ("HNN, 5 s", "T2", "hnn", 5),
+        ("LNN, 5 s", "T2", "lnn", 5),
+        ("DHN, 5 s", "T2", "dhn", 5),
+        ("FHNN, 60 s", "T3", "fhnn", 60),
+    ]
+    rows = []
+    for label, table, model, horizon in rows_spec:
+        cells, paper = [], None
+        for data in ("solid_body_vortex", "steady_vortex"):
+            (rec,) = [
+                r
+                for r in tables
+                if (r["table"], r["data"], r["model"], r["horizon"], r["metric"])
+                == (table, data, model, horizon, "rmse_pos")
+            ]
+            paper = rec["paper"]
+            if rec["statistic"] == "mean":
+                cells.append(f"{_g(rec['mean'])} ± {_g(rec['std'], 2)}")
+            elif rec["mean"] is None:
+                cells.append(f"diverged ({rec['diverged']}/{rec['rollouts']} rollouts)")
+            else:
+                cells.append(f"median {_g(rec['mean'])} ({rec['diverged']}/{rec['rollouts']} diverged)")
+        rows.append([label, *cells, _g(paper)])
+    return _table(["RMSE(pos) [m]", "solid_body_vortex", "steady_vortex (actuated)", "paper"], rows)
+
+
+def scenario_line(tables: list[dict[str, Any]]) -> str:
+    """FHNN's RMSE(pos) at 5 s on each scenario of T4 against the paper's."""
+    parts = []
+    for rec in (r for r in tables if (r["table"], r["model"], r["metric"]) == ("T4", "fhnn", "rmse_pos")):
+        if rec["statistic"] != "mean":
+            parts.append(
+                f"`{rec['data']}` median {_g(rec['mean'])} ({rec['diverged']}/{rec['rollouts']} diverged)"
+            )
+            continue
+        ratio = rec["paper"] / rec["mean"]
+        better = f"{_ratio(ratio)}× better" if ratio >= 1 else f"{_ratio(1 / ratio)}× worse"
+        parts.append(
+            f"`{rec['data']}` {_g(rec['mean'])} ± {_g(rec['std'], 2)} ({better} than {_g(rec['paper'])})"
+        )
+    text = "FHNN at 5 s on every scenario (T4): " + ", ".join(parts) + "."
+    return textwrap.fill(text, 100, break_on_hyphens=False)
+
+
+README_BEGIN = "<!-- results: generated by benchmarks/regenerate.py from docs/reproduction/tables.json -->"
+README_END = "<!-- /results -->"
+
+
+def readme_results(tables: list[dict[str, Any]]) -> str:
+    """The README's generated results block (between :data:`README_BEGIN` and :data:`README_END`)."""
+    return "\n\n".join([README_BEGIN, headline(tables), scenario_line(tables), README_END])
