@@ -46,10 +46,11 @@ def stamp_line(record: dict[str, Any], name: str) -> str:
     """Which file, which commit and code, which machine, when."""
     made = record.get("provenance") or {}
     machine = made.get("machine") or {}
+    seed = f" Data seed {record['data_seed']}: a {record['seed_role']} seed." if "seed_role" in record else ""
     return (
         f"*From `benchmarks/results/{name}.json`: commit `{str(made.get('commit'))[:10]}`, source "
         f"`{made.get('source')}`, {machine.get('cpu', '?')} ({machine.get('cores', '?')} cores), "
-        f"{str(made.get('date', ''))[:10]}.*"
+        f"{str(made.get('date', ''))[:10]}.{seed}*"
     )
 
 

@@ -27,6 +27,7 @@ def cli_reference() -> str:
 
 def on_page_markdown(markdown: str, page, config, files) -> str:
     """Fill the generated parts of a page."""
+    import json
     from pathlib import Path
 
     root = Path(config["docs_dir"]).parent
@@ -38,6 +39,12 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         markdown = markdown.replace(RESULTS_MARK, benchmark_results(root))
     if RECOVERY_MARK in markdown:
         markdown = markdown.replace(RECOVERY_MARK, reproduction_recovery(root))
+    if HEADLINE_MARK in markdown:
+        cells = json.loads((root / "docs" / "reproduction" / "tables.json").read_text())["cells"]
+        tables = _tables(root)
+        markdown = markdown.replace(
+            HEADLINE_MARK, tables.headline(cells) + "\n\n" + tables.scenario_line(cells)
+        )
     if "<!-- benchmark: " in markdown:
         markdown = _benchmark_sections(markdown, root)
     if TIMING_MARK in markdown:
@@ -46,6 +53,7 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
 
 
 REPRODUCTION_MARK = "<!-- reproduction-cells -->"
+HEADLINE_MARK = "<!-- headline -->"
 RESULTS_MARK = "<!-- benchmark-results -->"
 RECOVERY_MARK = "<!-- reproduction-recovery -->"
 TIMING_MARK = "<!-- reproduction-timing -->"
@@ -138,16 +146,23 @@ def reproduction_timing(root) -> str:
     )
 
 
-def _benchmark_sections(markdown: str, root) -> str:
-    """Each ``<!-- benchmark: NAME -->`` replaced by ``benchmarks/tables.py``'s rendering of
-    ``benchmarks/results/NAME.json``; a missing file fails the build."""
+def _tables(root):
+    """``benchmarks/tables.py``, which renders the result files."""
     import importlib.util
-    import json
-    import re
 
     spec = importlib.util.spec_from_file_location("benchmark_tables", root / "benchmarks" / "tables.py")
     tables = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tables)
+    return tables
+
+
+def _benchmark_sections(markdown: str, root) -> str:
+    """Each ``<!-- benchmark: NAME -->`` replaced by ``benchmarks/tables.py``'s rendering of
+    ``benchmarks/results/NAME.json``; a missing file fails the build."""
+    import json
+    import re
+
+    tables = _tables(root)
 
     def one(match: re.Match) -> str:
         name = match.group(1)
