@@ -27,6 +27,7 @@ QUESTIONS = {
     "Does it hold on data nobody tuned on?": [
         "own_data.py --data-seed 3 --skip-speed --result own_data_confirm_seed3",
         "own_data.py --data-seed 4 --skip-speed --result own_data_confirm_seed4",
+        "reproduction_confirm.py",
     ],
     "How fast does it import?": ["own_data.py --speed-only"],
     "How fast does it train?": ["training_speed.py"],

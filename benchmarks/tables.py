@@ -251,13 +251,7 @@ def render_numbers(record: dict[str, Any]) -> str:
 
 def render(name: str, record: dict[str, Any]) -> str:
     """The Markdown of result file ``name`` (without ``.json``)."""
-    base = (
-        "own_data"
-        if name.startswith("own_data")
-        else "fhnn_targets"
-        if name.startswith("fhnn_targets")
-        else name
-    )
+    base = next((b for b in ("own_data", "fhnn_targets", "reproduction") if name.startswith(b)), name)
     if f"render_{base}" in globals():
         body = globals()[f"render_{base}"](record)
     elif "output" in record:

@@ -127,8 +127,9 @@ def test_it_recovers_an_exactly_representable_truth(setting):
 
 def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     """``train.track_steps``: after Adam, records of phase "tracks" at the steps after Adam's (the
-    first saying how many tracks ``train.track_samples`` let the fit hold), the run finished (a second call trains nothing); a model that names no track parameters (the
-    neural ODE) passes the phase without records; a negative count is refused."""
+    first saying how many tracks ``train.track_samples`` let the fit hold), the run finished (a
+    second call trains nothing); a model that names no track parameters (the neural ODE) passes
+    the phase without records; a negative count is refused."""
     ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
     # a budget one sample short of the training tracks: the fit holds all but one of them
     budget = ds.train.n_traj * ds.train.n_times - 1
@@ -140,19 +141,9 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     assert [r["step"] for r in tracks] == [5, 6] or (state.stopped and "whole-track" in state.stopped)
     assert all(r["track_mean_square"] > 0 and "val_total" in r for r in tracks)
     assert np.all(np.diff([r["track_mean_square"] for r in tracks]) < 0)
-    # the forecasts guard: the last iterate that forecasts the validation tracks no worse than
-    # the phase's start is kept (3 s tracks: one forecast each, from the first sample)
-    guard = tracks[0]["val_forecast_start"]
-    assert tracks[0]["val_forecasts"] == ds.val.n_traj and np.isfinite(guard)
+    # the forecasts guard's records (which iterate it keeps: the constructed cases below)
+    assert tracks[0]["val_forecasts"] == ds.val.n_traj and np.isfinite(tracks[0]["val_forecast_start"])
     assert all(np.isfinite(r["val_forecast"]) and r["val_track_mean_square"] > 0 for r in tracks)
-    passing = [k for k, r in enumerate(tracks) if r["val_forecast"] <= guard]
-    if passing:
-        assert state.best_val == tracks[passing[-1]]["val_total"]
-        if passing[-1] == len(tracks) - 1:  # the last iterate: the run's model is its best
-            for a, b in zip(arrays(state.best_model), arrays(state.model), strict=True):
-                np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    else:
-        assert state.best_val == min(r["val_total"] for r in state.history if r.get("phase") != "tracks")
     assert run.finished and state.step == 6
     assert Run.load(tmp_path / "fhnn").finished
     before = len(state.history)
