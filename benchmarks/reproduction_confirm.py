@@ -3,8 +3,7 @@
     python benchmarks/reproduction_confirm.py [--data-seed N] [--out DIR]
 
 Runs ``fhnn reproduce --config FILE`` with ``models = ["fhnn"]``, ``ablations = []`` and ``[data]
-seed = N`` (N: the confirming
-seed of ``benchmarks/seeds.toml``'s ``[reproduction]`` table) and keeps its ``tables.json``, with
+seed = N`` (N: the confirming seed of ``benchmarks/seeds.toml``'s ``[reproduction]`` table) and keeps its ``tables.json``, with
 the seed and its role, as ``benchmarks/results/reproduction_seedN.json``. The seed is run with the
 settings as they stand and reported whatever it gives.
 """
@@ -28,22 +27,9 @@ def main() -> None:
     args = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
-        subprocess.run(
-            [
-                "fhnn",
-                "reproduce",
-                "-o",
-                str(out),
-                "-q",
-                "--set",
-                "models=fhnn",
-                "--set",
-                "ablations=",
-                "--set",
-                f"data.seed={args.data_seed}",
-            ],
-            check=True,
-        )
+        settings = Path(tmp) / "confirm.toml"
+        settings.write_text(f'models = ["fhnn"]\nablations = []\n\n[data]\nseed = {args.data_seed}\n')
+        subprocess.run(["fhnn", "reproduce", "-o", str(out), "-q", "--config", str(settings)], check=True)
         record = json.loads((out / "tables" / "tables.json").read_text())
     role = "confirming" if args.data_seed in seeds("reproduction", "confirming") else "choosing"
     record = {
