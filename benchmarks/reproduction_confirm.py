@@ -2,9 +2,9 @@
 
     python benchmarks/reproduction_confirm.py [--data-seed N] [--out DIR]
 
-Runs ``fhnn reproduce --config FILE`` with ``models = ["fhnn"]``, ``ablations = []`` and ``[data]
-seed = N`` (N: the confirming seed of ``benchmarks/seeds.toml``'s ``[reproduction]`` table) and keeps its ``tables.json``, with
-the seed and its role, as ``benchmarks/results/reproduction_seedN.json``. The seed is run with the
+Runs ``fhnn reproduce --config FILE`` with ``models = ["fhnn"]``, ``ablations = []`` and
+``[data] seed = N`` (N: the confirming seed of ``benchmarks/seeds.toml``'s ``[reproduction]``
+table) and keeps its ``tables.json``, with the seed and its role, as ``benchmarks/results/reproduction_seedN.json``. The seed is run with the
 settings as they stand and reported whatever it gives.
 """
 
