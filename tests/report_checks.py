@@ -41,7 +41,9 @@ def check_report(out: Path, tmp_path: Path, t4: set[str]) -> None:
     every figure; the Markdown report; the self-contained HTML, every image decoded in headless
     Chromium."""
     for key in ("T1", "T2", "T3", "T4", "T5", "T6"):
-        rows = json.loads((out / "tables" / f"{key}.json").read_text())
+        record = json.loads((out / "tables" / f"{key}.json").read_text())
+        assert set(record) == {"provenance", "cells"} and record["provenance"]["source"], key
+        rows = record["cells"]
         assert rows, key
         for r in rows:
             assert "paper" in r
@@ -51,9 +53,9 @@ def check_report(out: Path, tmp_path: Path, t4: set[str]) -> None:
         assert (
             (out / "tables" / f"{key}.csv").read_text().startswith("table,data,model,horizon,metric,mean,std")
         )
-    t1 = json.loads((out / "tables" / "T1.json").read_text())
+    t1 = json.loads((out / "tables" / "T1.json").read_text())["cells"]
     assert any(r["paper"] == 1.07e-4 for r in t1)  # the paper's FHNN RMSE at 1 s beside ours
-    assert {r["data"] for r in json.loads((out / "tables" / "T4.json").read_text())} == t4
+    assert {r["data"] for r in json.loads((out / "tables" / "T4.json").read_text())["cells"]} == t4
     for stem in ("flow", "rollouts", "errors_vs_horizon", "ablations"):
         for ext in ("png", "svg"):
             path = out / "figures" / f"{stem}_solid_body_vortex.{ext}"

@@ -279,7 +279,8 @@ REPRODUCE += ["--set", "data.n_traj=8", "--set", "train.steps=40", "--set", "tra
 
 
 def _results(out: Path) -> dict[str, bytes]:
-    """Every file a reproduction wrote that its numbers decide (not its timings or run times)."""
+    """Every file a reproduction wrote that its numbers decide (not its timings, run times or the
+    date in its provenance stamp)."""
     files = {}
     for path in sorted(out.rglob("*")):
         rel = str(path.relative_to(out))
@@ -289,8 +290,11 @@ def _results(out: Path) -> dict[str, bytes]:
             and path.suffix not in (".html", ".md")
         ):
             data = path.read_bytes()
-            if path.name in ("result.json", "timings.json"):
+            stamped = path.suffix == ".json" and b'"provenance"' in data
+            if path.name in ("result.json", "timings.json") or stamped:
                 info = json.loads(data)
+                if isinstance(info, dict) and isinstance(info.get("provenance"), dict):
+                    info["provenance"].pop("date")  # when the file was written, not what it holds
                 for key in (
                     "train_seconds",
                     "eval_seconds",

@@ -259,9 +259,9 @@ def test_noise_level_and_velocities_are_estimated_from_positions(fine, imported)
             errors.append((split.states[i, 5 : k - 5, 2:] - v_true[5:-5]).ravel())
     rms = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
     # 1 mm noise at ~0.05 s: a finite difference would be ~28 mm/s off; the default smoother
-    # (the spline, said so in the record) is ~10× better
+    # (the spline, said so in the record) is ~18× better
     assert data.extra["import"]["smoother"] == "spline", data.extra["import"]
-    assert rms < 4e-3, rms
+    assert rms < 2e-3, rms  # 1.55 mm/s here
 
 
 def test_lagrange_residuals_vanish_for_a_cubic_at_irregular_times(rng) -> None:
@@ -437,7 +437,9 @@ def test_estimated_velocities_train_with_their_start_errors_weighed(fine, import
             v_true = np.stack([truth["vx"][rows][order], truth["vy"][rows][order]], axis=1)
             errors.append((split.states[i, : split.sample_counts[i], 2:] - v_true).ravel())
     rms = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
-    assert 0.5 < record["velocity_error"] / rms < 2.0, (record["velocity_error"], rms)
+    # the import's bootstrap estimate of its velocity error against the true error: 3 % high on
+    # the own-data benchmark's table, 12 % high on this smaller one; within 10 % of 1.03
+    assert record["velocity_error"] / rms == pytest.approx(1.03, rel=0.1), (record["velocity_error"], rms)
     noise, error = data_settings(data)["train.shoot_noise"]
     assert noise == pytest.approx(record["position_noise"], rel=5e-3)
     assert error == pytest.approx(record["velocity_error"], rel=5e-3)
