@@ -4,8 +4,9 @@
 
 Runs ``fhnn reproduce --config FILE`` with ``models = ["fhnn"]``, ``ablations = []`` and
 ``[data] seed = N`` (N: the confirming seed of ``benchmarks/seeds.toml``'s ``[reproduction]``
-table) and keeps its ``tables.json``, with the seed and its role, as ``benchmarks/results/reproduction_seedN.json``. The seed is run with the
-settings as they stand and reported whatever it gives.
+table) and keeps its ``tables.json``, with the seed and its role, as
+``benchmarks/results/reproduction_seedN.json``. The seed is run with the settings as they stand
+and reported whatever it gives.
 """
 
 from __future__ import annotations
