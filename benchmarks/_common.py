@@ -55,6 +55,12 @@ def seeds(benchmark: str, role: str) -> list[int]:
     return list(table[role])
 
 
+def seed_role(benchmark: str, seed: int) -> str:
+    """Whether data seed ``seed`` is ``"choosing"`` or ``"confirming"`` for ``benchmark`` in
+    ``benchmarks/seeds.toml``, or ``"unlisted"``."""
+    return next((r for r in ("choosing", "confirming") if seed in seeds(benchmark, r)), "unlisted")
+
+
 def check_choosing_seed(benchmark: str, seed: int) -> None:
     """Stop a script that chooses settings when ``seed`` is one of the confirming seeds."""
     if seed in seeds(benchmark, "confirming"):

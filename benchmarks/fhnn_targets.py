@@ -36,7 +36,7 @@ import json
 import time
 from pathlib import Path
 
-from _common import RESULTS, dataset, seeds, stamp
+from _common import RESULTS, dataset, seed_role, stamp
 
 import fhnn
 from fhnn.evaluation.evaluate import evaluate
@@ -135,7 +135,7 @@ def main() -> None:
     if args.plan is None and options == {"model": {}, "train": {}}:  # fhnn train's defaults: a result
         name = "fhnn_targets" + ("" if args.data_seed is None else f"_seed{args.data_seed}")
         seed = args.data_seed or 0
-        role = next((r for r in ("choosing", "confirming") if seed in seeds("reproduction", r)), "unlisted")
+        role = seed_role("reproduction", seed)
         record = {**stamp(), "data_seed": seed, "seed_role": role, "targets": TARGETS, **report}
         (RESULTS / f"{name}.json").write_text(json.dumps(record, indent=1, default=float))
         print(f"wrote benchmarks/results/{name}.json")

@@ -46,7 +46,7 @@ from pathlib import Path
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from _common import RESULTS, seeds, stamp
+from _common import RESULTS, seed_role, stamp
 
 from fhnn.cli.app import main as fhnn
 from fhnn.data.dataset import Dataset, read_dataset, write_dataset
@@ -662,8 +662,7 @@ def main() -> None:
         )
     if not args.skip_speed:
         result["import_speed"] = import_speed(out)
-    role = next((r for r in ("choosing", "confirming") if args.data_seed in seeds("own_data", r)), "unlisted")
-    result = {**stamp(), "seed_role": role, **result}
+    result = {**stamp(), "seed_role": seed_role("own_data", args.data_seed), **result}
     text = json.dumps(result, indent=2)
     previous.write_text(text)
     if args.result:

@@ -17,7 +17,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from _common import RESULTS, seeds
+from _common import RESULTS, seed_role, seeds
 
 
 def main() -> None:
@@ -32,12 +32,11 @@ def main() -> None:
         settings.write_text(f'models = ["fhnn"]\nablations = []\n\n[data]\nseed = {args.data_seed}\n')
         subprocess.run(["fhnn", "reproduce", "-o", str(out), "-q", "--config", str(settings)], check=True)
         record = json.loads((out / "tables" / "tables.json").read_text())
-    role = "confirming" if args.data_seed in seeds("reproduction", "confirming") else "choosing"
     record = {
         "commit": record["provenance"]["commit"],
         **record,
         "data_seed": args.data_seed,
-        "seed_role": role,
+        "seed_role": seed_role("reproduction", args.data_seed),
     }
     path = RESULTS / f"reproduction_seed{args.data_seed}.json"
     path.write_text(json.dumps(record, indent=1))
