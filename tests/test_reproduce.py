@@ -441,25 +441,25 @@ def _results(out: Path) -> list[str]:
     return [p.read_text() for p in sorted((out / "jobs").glob("*/result.json"))]
 
 
-@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:os.fork")
 def test_ray_cluster_gives_the_numbers_of_the_local_executor(tmp_path: Path) -> None:
-    """Both compile with ``fast_compile``'s XLA flags (local workers set them as they start, Ray
-    starts its workers with them): a worker without them would differ in the last bits. Left out
-    of the default run; ``benchmarks/quick_reproduction.py --ray`` makes the same check on
-    every job of ``fhnn reproduce --quick`` (``docs/design/data/quick_reproduction_ray.txt``)."""
+    """An FHNN job on a one-CPU Ray cluster gives the bytes of the same job in a local worker.
+    Both compile with ``fast_compile``'s XLA flags (local workers set them as they start, Ray
+    starts its workers with them): a worker without them would differ in the last bits.
+    ``benchmarks/quick_reproduction.py --ray`` makes the same check on every job of
+    ``fhnn reproduce --quick``."""
     ray = pytest.importorskip("ray")
-    config = ReproduceConfig.from_dict({**TWO_JOBS, "fast_compile": True})
+    config = ReproduceConfig.from_dict({**TWO_JOBS, "models": ("fhnn",), "fast_compile": True})
     local = reproduce(config, tmp_path / "local", workers=1)  # one worker process, for the flags
-    assert local.jobs_run == 2
+    assert local.jobs_run == 1
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
     try:
         remote = reproduce(config, tmp_path / "ray", ray_address="auto")
     finally:
         ray.shutdown()
-    assert remote.jobs_run == 2
+    assert remote.jobs_run == 1
     a, b = _metrics(tmp_path / "local"), _metrics(tmp_path / "ray")
-    assert list(a) == list(b) and len(a) == 2
+    assert list(a) == list(b) and len(a) == 1
     assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)  # bit-identical
 
 
@@ -467,22 +467,27 @@ def _fhnn(*args: str) -> list[str]:
     return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
 
 
+#: The README's main job with FHNN and the Neural ODE only (T1's comparison): every table and
+#: figure, at half the compilations (the whole command: ``benchmarks/quick_reproduction.py``).
+QUICK_TWO_MODELS = ["--set", "models=fhnn,node"]
+
+
 def _reproduce_twice(out: Path) -> None:
-    """Run ``fhnn reproduce --quick`` into ``out`` (its jobs in one process:
-    ``--workers 1``; in the suite the other test worker already keeps the second core busy), then
-    again, which must run nothing and keep the report."""
+    """Run ``fhnn reproduce --quick`` with :data:`QUICK_TWO_MODELS` into ``out`` (its jobs in one
+    process: ``--workers 1``; in the suite the other test worker already keeps the second core
+    busy), then again, which must run nothing and keep the report."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     run = subprocess.run(
-        _fhnn("reproduce", "--quick", "-o", str(out), "-q", "--workers", "1"),
+        _fhnn("reproduce", "--quick", *QUICK_TWO_MODELS, "-o", str(out), "-q", "--workers", "1"),
         env=env,
         capture_output=True,
         text=True,
     )
     assert run.returncode == 0, run.stderr
-    n_data, n_jobs = (len(x) for x in build_grid(ReproduceConfig.quick()))
+    n_data, n_jobs = (len(x) for x in build_grid(ReproduceConfig.quick({"models": ["fhnn", "node"]})))
     assert f"{n_data} of {n_data} data sets and {n_jobs} of {n_jobs} training jobs run" in run.stdout
     again = subprocess.run(
-        _fhnn("reproduce", "--quick", "-o", str(out), "-q"),
+        _fhnn("reproduce", "--quick", *QUICK_TWO_MODELS, "-o", str(out), "-q"),
         env=env,
         capture_output=True,
         text=True,
@@ -493,12 +498,11 @@ def _reproduce_twice(out: Path) -> None:
     )
 
 
-@pytest.mark.slow
 def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None:
-    """The README's main job as it is, all five scenarios in T4, every check of its report
-    (tests/report_checks.py), then again, which must run nothing and keep the report. Covered in
-    the default run by ``benchmarks/quick_reproduction.py``, which times it and makes the same
-    checks; kills and resumes of a reproduction: tests/test_faults.py."""
+    """The README's main job (FHNN and the Neural ODE), all five scenarios in T4, every check of its report
+    (tests/report_checks.py), then again, which must run nothing and keep the report
+    (``benchmarks/quick_reproduction.py`` times it and makes the same checks; kills and resumes
+    of a reproduction: tests/test_faults.py)."""
     _reproduce_twice(tmp_path / "report")
     check_report(
         tmp_path / "report",
