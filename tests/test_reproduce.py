@@ -467,27 +467,22 @@ def _fhnn(*args: str) -> list[str]:
     return [sys.executable, "-c", "from fhnn.cli.app import main; main()", *args]
 
 
-#: The README's main job with FHNN and the Neural ODE only (T1's comparison): every table and
-#: figure, at half the compilations (the whole command: ``benchmarks/quick_reproduction.py``).
-QUICK_TWO_MODELS = ["--set", "models=fhnn,node"]
-
-
 def _reproduce_twice(out: Path) -> None:
-    """Run ``fhnn reproduce --quick`` with :data:`QUICK_TWO_MODELS` into ``out`` (its jobs in one
-    process: ``--workers 1``; in the suite the other test worker already keeps the second core
-    busy), then again, which must run nothing and keep the report."""
+    """Run ``fhnn reproduce --quick`` into ``out`` (its jobs in one process: ``--workers 1``; in
+    the suite the other test worker already keeps the second core busy), then again, which must
+    run nothing and keep the report."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     run = subprocess.run(
-        _fhnn("reproduce", "--quick", *QUICK_TWO_MODELS, "-o", str(out), "-q", "--workers", "1"),
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q", "--workers", "1"),
         env=env,
         capture_output=True,
         text=True,
     )
     assert run.returncode == 0, run.stderr
-    n_data, n_jobs = (len(x) for x in build_grid(ReproduceConfig.quick({"models": ["fhnn", "node"]})))
+    n_data, n_jobs = (len(x) for x in build_grid(ReproduceConfig.quick()))
     assert f"{n_data} of {n_data} data sets and {n_jobs} of {n_jobs} training jobs run" in run.stdout
     again = subprocess.run(
-        _fhnn("reproduce", "--quick", *QUICK_TWO_MODELS, "-o", str(out), "-q"),
+        _fhnn("reproduce", "--quick", "-o", str(out), "-q"),
         env=env,
         capture_output=True,
         text=True,
@@ -499,7 +494,7 @@ def _reproduce_twice(out: Path) -> None:
 
 
 def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None:
-    """The README's main job (FHNN and the Neural ODE), all five scenarios in T4, every check of its report
+    """The README's main job as it is, all five scenarios in T4, every check of its report
     (tests/report_checks.py), then again, which must run nothing and keep the report
     (``benchmarks/quick_reproduction.py`` times it and makes the same checks; kills and resumes
     of a reproduction: tests/test_faults.py)."""
