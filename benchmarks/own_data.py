@@ -111,21 +111,25 @@ def make_data(
     smoother: str | None = None,
     glitches: float = 0.0,
     import_args: tuple[str, ...] = (),
+    n_traj: int = 70,
+    duration: float = 20.0,
 ) -> tuple[Dataset, dict, dict, Path, float]:
     """Issue 14's data in ``out``: the fine simulation (simulated once, reused), the tracker's table
     (noisy positions; with a fraction ``glitches`` of them glitched, :func:`add_glitches`), the
     same table without noise and with velocities, and the imported data set (``fhnn import``,
-    every call, with ``import_args``, which tag its file). Returns ``(fine, table, table_clean,
-    data path, import seconds)``."""
+    every call, with ``import_args``, which tag its file). ``n_traj`` tracks of ``duration`` [s]
+    (other sizes than issue 14's 70 × 20 s tag the fine simulation's file). Returns ``(fine,
+    table, table_clean, data path, import seconds)``."""
     sc = get_scenario("steady_vortex")
-    fine_path = out / f"fine_seed{data_seed}{'_noforce' if no_forcing else ''}.h5"
-    suffix = data_suffix(no_forcing, noise, glitches)
+    size = "" if (n_traj, duration) == (70, 20.0) else f"_{n_traj}x{duration:g}s"
+    fine_path = out / f"fine_seed{data_seed}{'_noforce' if no_forcing else ''}{size}.h5"
+    suffix = data_suffix(no_forcing, noise, glitches) + size
     if not fine_path.exists():
         config = SimulationConfig.for_scenario(
             sc,
-            n_traj=70,
-            duration=20.0,
-            test_duration=20.0,
+            n_traj=n_traj,
+            duration=duration,
+            test_duration=duration,
             dt=0.01,
             actuation="none" if no_forcing else "random",
             seed=data_seed,
@@ -138,7 +142,7 @@ def make_data(
     if glitches:
         table = add_glitches(table, glitches, data_seed)[0]
     csv = write_table(table, out / f"track_seed{data_seed}{suffix}.csv")
-    data = out / f"track_seed{data_seed}{data_suffix(no_forcing, noise, glitches, import_args)}.h5"
+    data = out / f"track_seed{data_seed}{data_suffix(no_forcing, noise, glitches, import_args)}{size}.h5"
     start = time.perf_counter()
     data.unlink(missing_ok=True)
     area = str(fine.body_params["A"])

@@ -24,8 +24,10 @@ true value:
 - ``all-knots``: the added masses free at the same values of σ too (FHNN's masses are functions of
   ``(r, σ)``, as are its ``c_q``).
 
-FHNN's nets (flow and coefficients as functions) have more freedom than either, so its errors can
-only be larger. ``--flow-bumps K`` frees the flow besides ``Γ`` and ``r_c``: ``K × K`` Gaussian
+FHNN's nets (flow and coefficients as functions) have more freedom than either, so the bound of an
+unbiased estimator with FHNN's freedom would be larger still; FHNN's estimates are not unbiased
+(smooth nets, a finite training), so for them the bound is a reference scale, not a floor their
+errors cannot go below. ``--flow-bumps K`` frees the flow besides ``Γ`` and ``r_c``: ``K × K`` Gaussian
 stream-function bumps over the training positions' box, each as wide as their spacing
 (:class:`BumpedFlow`), a learned flow's large-scale freedom; bumps no track comes near are left out
 as not identifiable. The bound says whether a target can be met with these data at all: a 90 %

@@ -213,7 +213,11 @@ def render_differentiators(record: dict[str, Any]) -> str:
     """Velocity estimators on the tracker's tables: RMS error over all samples and near the ends."""
     rows = []
     for label, r in record["estimators"].items():
-        note = ", ".join(f"{k} = {_g(v) if isinstance(v, float) else v}" for k, v in r["params"].items())
+        params = dict(r["params"])
+        gap = params.pop("max_abs_difference_from_fhnn_kalman_m_per_s", None)
+        note = ", ".join(f"{k}={_g(v) if isinstance(v, float) else v}" for k, v in params.items())
+        if gap is not None:
+            note = f"max. {_g(gap * 1e3)} mm/s from fhnn's Kalman"
         rows.append([label, _g(r["rms"] * 1e3), _g(r["edge_rms"] * 1e3), f"{r['seconds']:.1f}", note])
     caption = (
         f"*{record['tracks']} tracks, {record['samples']} samples, noise {record['noise_m'] * 1e3:g} mm; "
@@ -225,10 +229,10 @@ def render_differentiators(record: dict[str, Any]) -> str:
 
 #: The solvers of ``benchmarks/track_fit_solvers.py``, in words.
 TRACK_SOLVERS = {
-    "trackfit": "fhnn TrackFit (dense normal equations, start states eliminated)",
-    "qr": "optimistix LM, lineax QR (dense Jacobian)",
-    "cg": "optimistix LM, lineax Normal(CG) (matrix-free)",
-    "lsmr": "optimistix LM, lineax LSMR (matrix-free)",
+    "trackfit": "fhnn TrackFit",
+    "qr": "optimistix + QR",
+    "cg": "optimistix + Normal(CG)",
+    "lsmr": "optimistix + LSMR",
 }
 
 
@@ -309,7 +313,7 @@ def render_numbers(record: dict[str, Any]) -> str:
 
 def render(name: str, record: dict[str, Any]) -> str:
     """The Markdown of result file ``name`` (without ``.json``)."""
-    kinds = ("own_data", "fhnn_targets", "reproduction", "baselines")
+    kinds = ("own_data", "fhnn_targets", "reproduction", "baselines", "track_fit_solvers")
     base = next((b for b in kinds if name.startswith(b)), name)
     if f"render_{base}" in globals():
         body = globals()[f"render_{base}"](record)
