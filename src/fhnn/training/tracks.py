@@ -115,7 +115,21 @@ class TrackFit:
 
     @property
     def model(self) -> AbstractVectorField:
-        return eqx.combine(self._unravel(self.theta), self._static)
+        return self.model_at(self.theta)
+
+    def model_at(self, theta: Array) -> AbstractVectorField:
+        """The model with its free parameters set to ``theta`` ``(p,)`` (traceable: a function of
+        ``theta`` that JAX can differentiate)."""
+        return eqx.combine(self._unravel(theta), self._static)
+
+    def gauss_newton(self) -> np.ndarray:
+        """The Gauss–Newton matrix ``JᵀJ`` of the objective in the model's parameters at the
+        current iterate with the start states eliminated (the Schur complement of their 4×4
+        blocks: the curvature left once every start state has adapted), ``(p, p)`` [m²/unit²]."""
+        h_tt, _, h_tz, h_zz, _ = self._normal_equations()
+        inv_zt = np.linalg.solve(h_zz + _jitter(h_zz), np.transpose(h_tz, (0, 2, 1)))
+        reduced = h_tt - np.einsum("npi,niq->pq", h_tz, inv_zt)
+        return 0.5 * (reduced + reduced.T)
 
     @property
     def mean_square(self) -> float:
@@ -173,7 +187,7 @@ class TrackFit:
                 r = self._resid(self.theta, z[b], *tr).reshape(jz.shape[0], -1)
                 h = jnp.einsum("nki,nkj->nij", jz, jz)
                 g = jnp.einsum("nki,nk->ni", jz, r)
-                h = h + 1e-12 * jnp.trace(h, axis1=1, axis2=2)[:, None, None] * jnp.eye(4)
+                h = h + _jitter(h)
                 parts.append(z[b] - jnp.linalg.solve(h, g[..., None])[..., 0])
             z = jnp.concatenate(parts)
         return z
@@ -235,6 +249,12 @@ class TrackFit:
         return TrackFitStep(self.model, self.mean_square, self.damping, False)
 
 
+def _jitter(h: Array | np.ndarray) -> Array | np.ndarray:
+    """A ridge of 1e-12 of each 4×4 block's trace ``(N, 4, 4)``: a start state that no sample
+    constrains (a one-sample piece's velocity) stays solvable."""
+    return 1e-12 * h.trace(axis1=1, axis2=2)[:, None, None] * np.eye(4)
+
+
 def track_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarray]:
     """The tracks of ``split`` cut down to a whole-track fit of at most ``budget`` samples
     (tracks × their padded length), so that one iteration's cost does not grow with the data.
@@ -268,6 +288,13 @@ def track_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarra
     ranked = [pieces[i][r] for r in rounds for i in order if r < len(pieces[i])]
     kept = sorted(ranked[: max(1, budget // longest)])
     return _pieces(split, kept), np.asarray([i for i, _, _ in kept])
+
+
+def fitted_pieces(split: Split, track_samples: int, seed: int) -> tuple[Split, np.ndarray]:
+    """The pieces of ``split`` that the whole-track fit of a run trained with ``track_samples``
+    and ``seed`` (its :class:`~fhnn.training.train_config.TrainConfig`'s) fits:
+    :func:`track_pieces` with its seed."""
+    return track_pieces(split, track_samples, seed + 5)
 
 
 def _pieces(split: Split, kept: list[tuple[int, int, int]]) -> Split:

@@ -52,7 +52,7 @@ from fhnn.training.budget import Budget
 from fhnn.training.losses import _validation_terms, data_loss, loss_terms
 from fhnn.training.quasi_newton import quasi_newton_objective, quasi_newton_step, strong_types
 from fhnn.training.sampling import bootstrap_weights, draw_batch
-from fhnn.training.tracks import ForecastScore, TrackFit, track_pieces
+from fhnn.training.tracks import ForecastScore, TrackFit, fitted_pieces, track_pieces
 from fhnn.training.train_config import (
     PENALTY_FREE_MIN_STEPS,
     QUASI_NEWTON_FIELDS,
@@ -286,7 +286,7 @@ class Trainer:
         done = self.total_steps - left
         if time.monotonic() >= self.deadline("tracks"):
             return self._tracks_not_begun(state, done, left)
-        split, parent = track_pieces(self.train_split, cfg.track_samples, cfg.seed + 5)
+        split, parent = fitted_pieces(self.train_split, cfg.track_samples, cfg.seed)
         n_tracks = self.train_split.n_traj
         weights = None
         if cfg.bootstrap:  # each piece weighted as its track
