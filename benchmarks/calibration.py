@@ -12,9 +12,10 @@ and that error in units of the interval's half-width over 1.645 (an interval tha
 With ``--method laplace`` each data set is trained once (``fhnn train`` with no options) and
 its intervals are the Laplace ones from the whole-track fit's curvature
 (:func:`fhnn.experiments.laplace.laplace_tables`), for each eigenvalue floor of :data:`FLOORS`:
-the choosing seeds choose the floor (:data:`fhnn.training.curvature.FLOOR`), the confirming
-ones confirm it. A quantity whose interval is withheld (wider than its value) does not hold.
-Each data set's result is kept in its folder, so a rerun picks up where one stopped.
+the choosing seeds choose the floor (:data:`fhnn.training.curvature.FLOOR`; their record goes
+to ``docs/design/data``), the confirming ones confirm it (``benchmarks/results``). A quantity
+whose interval is withheld (wider than its value) does not hold. Each data set's result is kept
+in its folder, so a rerun picks up where one stopped.
 
 The data seeds are ``benchmarks/seeds.toml``'s ``[calibration]`` table; ``--role`` picks the
 choosing or the confirming ones. Each data set is one independent job: with ``--ray ADDRESS``
@@ -36,6 +37,8 @@ from pathlib import Path
 import numpy as np
 from _common import RESULTS, seeds, stamp
 
+#: Where a choosing run's record goes (the docs' design notes cite it).
+DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
 #: The eigenvalue floors ``--method laplace`` compares (relative to the largest eigenvalue).
 FLOORS = (1e-16, 1e-15, 1e-14, 1e-13, 1e-12)
 #: Training settings of ``--fast`` (``fhnn train --set``), besides ``--steps``.
@@ -209,7 +212,10 @@ def main() -> None:
     }
     method = "_laplace" if args.method == "laplace" else ""
     name = f"calibration{method}_{args.role}{'_noforce' if args.no_forcing else ''}"
-    target = (args.out if args.fast else RESULTS) / f"{name}.json"  # --fast numbers are not results
+    # --fast numbers are not results; a choosing run is the record of a choice (design data),
+    # a confirming one a result the docs show at the current code
+    folder = args.out if args.fast else RESULTS if args.role == "confirming" else DESIGN_DATA
+    target = folder / f"{name}.json"
     target.write_text(json.dumps(record, indent=1, default=float))
     print(f"wrote {target}")
 

@@ -54,6 +54,29 @@ def setting(tmp_path_factory):
     return model, free, truth, exact
 
 
+def test_only_parameters_that_move_a_residual_get_tangents(setting):
+    """After the first iteration the fit builds Jacobian columns only for the parameters that
+    move a residual: the coefficient net's ``c_l`` output row (weights and bias), overridden by
+    the constant ``c_l``, and the stream net's output bias (a constant in ψ moves no water) are
+    left out, and the next normal equations equal the full ones."""
+    model, free, _, exact = setting
+    fit = TrackFit(model, free, exact)
+    assert fit.live is None
+    full = fit._normal_equations()
+    width = model.eom.coefficients.mlp.layers[-1].weight.shape[1]
+    dead = np.setdiff1d(np.arange(fit.p), fit.live)
+    params = eqx.partition(model, free)[0]
+    stream_bias = model.eom.flow.mlp.layers[-1].bias.size
+    c_l_row = np.r_[np.arange(width * 3, width * 4), width * 4 + 3]  # weight row 3, bias[3]
+    coefficient_start = fit.p - width * 4 - 4 - 1  # the coefficient net's output layer, then c_l
+    assert jax.tree.leaves(params)[1].size == stream_bias == 1
+    np.testing.assert_array_equal(dead, np.r_[width, coefficient_start + c_l_row])
+    assert np.all(full[0][dead] == 0.0) and np.all(full[1][dead] == 0.0)
+    pruned = fit._normal_equations()
+    for a, b in zip(full, pruned, strict=True):
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-14 * np.max(np.abs(a)))
+
+
 def test_the_normal_equations_gradient_matches_finite_differences(setting):
     """``Jᵀr`` of the model's parameters and of the start states equals half the central finite
     difference of the summed squares along random directions."""

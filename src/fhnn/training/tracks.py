@@ -107,6 +107,8 @@ class TrackFit:
         #: Each track's start state ``(N, 4)``: the split's first state, refined by the fit.
         self.z = jnp.asarray(split.states[:, 0])
         self.damping = DAMPING_START
+        #: The parameters whose Jacobian column is not zero (``None`` until the first iteration).
+        self.live: np.ndarray | None = None
         resid, self._jz, self._jtheta = _programs(self._static, self._unravel, split.switch is not None)
         self._resid = resid
         self._cost = jax.jit(lambda th, z, *tr: jnp.sum(resid(th, z, *tr) ** 2))
@@ -194,10 +196,19 @@ class TrackFit:
 
     def _normal_equations(self) -> tuple[np.ndarray, ...]:
         """``(H_θθ, g_θ, H_θz, H_zz, g_z)`` of the Gauss–Newton system at the current iterate:
-        ``(p, p)``, ``(p,)``, ``(N, p, 4)``, ``(N, 4, 4)``, ``(N, 4)``."""
+        ``(p, p)``, ``(p,)``, ``(N, p, 4)``, ``(N, 4, 4)``, ``(N, 4)``.
+
+        Only the parameters whose Jacobian column was not zero at the first call get tangents
+        (:attr:`live`): a parameter that moves no residual at all (an output the model
+        overrides, such as the coefficient net's ``c_l`` beside the constant one) stays without
+        effect while only the fitted parameters move, and its rows stay zero. The live tangents
+        are spread evenly over the fewest chunks of at most :data:`TANGENT_CHUNK`."""
         p = self.p
-        padded = -(-p // TANGENT_CHUNK) * TANGENT_CHUNK
-        basis = jnp.eye(padded, p)
+        live = np.arange(p) if self.live is None else self.live
+        m = live.size
+        chunks = max(1, -(-m // TANGENT_CHUNK))
+        size = -(-m // chunks)
+        basis = jnp.zeros((chunks * size, p)).at[np.arange(m), live].set(1.0)
         h_tt, g_t = np.zeros((p, p)), np.zeros(p)
         h_tz, h_zz, g_z = [], [], []
         for b in self._batches():
@@ -205,17 +216,21 @@ class TrackFit:
             r = np.asarray(self._resid(self.theta, self.z[b], *tr)).reshape(tr[0].shape[0], -1)
             jt = np.concatenate(
                 [
-                    np.asarray(self._jtheta(self.theta, self.z[b], basis[i : i + TANGENT_CHUNK], *tr))
-                    for i in range(0, padded, TANGENT_CHUNK)
+                    np.asarray(self._jtheta(self.theta, self.z[b], basis[i : i + size], *tr))
+                    for i in range(0, chunks * size, size)
                 ]
-            )[:p].reshape(p, r.shape[0], -1)  # (p, tracks, samples·2)
+            )[:m].reshape(m, r.shape[0], -1)  # (live, tracks, samples·2)
             jz = np.asarray(self._jz(self.theta, self.z[b], *tr)).reshape(r.shape[0], -1, 4)
-            flat = jt.reshape(p, -1)
-            h_tt += flat @ flat.T
-            g_t += flat @ r.ravel()
-            h_tz.append(np.einsum("pnk,nki->npi", jt, jz, optimize=True))
+            flat = jt.reshape(m, -1)
+            h_tt[np.ix_(live, live)] += flat @ flat.T
+            g_t[live] += flat @ r.ravel()
+            block = np.zeros((r.shape[0], p, 4))
+            block[:, live] = np.einsum("pnk,nki->npi", jt, jz, optimize=True)
+            h_tz.append(block)
             h_zz.append(np.einsum("nki,nkj->nij", jz, jz, optimize=True))
             g_z.append(np.einsum("nki,nk->ni", jz, r, optimize=True))
+        if self.live is None:
+            self.live = np.flatnonzero(np.diag(h_tt) > 0)
         return h_tt, g_t, np.concatenate(h_tz), np.concatenate(h_zz), np.concatenate(g_z)
 
     def step(self) -> TrackFitStep:
