@@ -148,6 +148,28 @@ def test_it_recovers_an_exactly_representable_truth(setting):
             )
 
 
+def test_chord_steps_only_lower_the_objective_and_reuse_the_jacobian(setting, monkeypatch):
+    """An iteration with chord steps takes the same first step as one without (the same
+    normal equations, built once), then lowers the objective further with the kept Jacobian;
+    the kept blocks give the exact gradient at the point they were built."""
+    model, free, _, exact = setting
+    plain, chord = TrackFit(model, free, exact), TrackFit(model, free, exact)
+    plain.step()
+    built = []
+    inner = TrackFit._normal_equations
+    monkeypatch.setattr(
+        TrackFit, "_normal_equations", lambda self, keep=False: built.append(keep) or inner(self, keep)
+    )
+    chord.step(chord=3)
+    assert built == [True] and chord._kept is None
+    assert chord.value < 0.5 * plain.value  # the exact tracks: each chord step gains
+    check = TrackFit(model, free, exact)
+    _, g_t, _, _, g_z = check._normal_equations(keep=True)
+    got_t, got_z = check._chord_gradient()
+    np.testing.assert_allclose(got_t, g_t, rtol=1e-12, atol=1e-15 * np.abs(g_t).max())
+    np.testing.assert_allclose(got_z, g_z, rtol=1e-12, atol=1e-15 * np.abs(g_z).max())
+
+
 def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     """``train.track_steps``: after Adam, records of phase "tracks" at the steps after Adam's (the
     first saying how many tracks ``train.track_samples`` let the fit hold), the run finished (a

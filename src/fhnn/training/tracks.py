@@ -109,6 +109,7 @@ class TrackFit:
         self.damping = DAMPING_START
         #: The parameters whose Jacobian column is not zero (``None`` until the first iteration).
         self.live: np.ndarray | None = None
+        self._kept: list[tuple[slice, np.ndarray, np.ndarray, np.ndarray]] | None = None
         resid, self._jz, self._jtheta = _programs(self._static, self._unravel, split.switch is not None)
         self._resid = resid
         self._cost = jax.jit(lambda th, z, *tr: jnp.sum(resid(th, z, *tr) ** 2))
@@ -194,7 +195,7 @@ class TrackFit:
             z = jnp.concatenate(parts)
         return z
 
-    def _normal_equations(self) -> tuple[np.ndarray, ...]:
+    def _normal_equations(self, keep: bool = False) -> tuple[np.ndarray, ...]:
         """``(H_θθ, g_θ, H_θz, H_zz, g_z)`` of the Gauss–Newton system at the current iterate:
         ``(p, p)``, ``(p,)``, ``(N, p, 4)``, ``(N, 4, 4)``, ``(N, 4)``.
 
@@ -202,7 +203,8 @@ class TrackFit:
         (:attr:`live`): a parameter that moves no residual at all (an output the model
         overrides, such as the coefficient net's ``c_l`` beside the constant one) stays without
         effect while only the fitted parameters move, and its rows stay zero. The live tangents
-        are spread evenly over the fewest chunks of at most :data:`TANGENT_CHUNK`."""
+        are spread evenly over the fewest chunks of at most :data:`TANGENT_CHUNK`. With ``keep``
+        the Jacobian's blocks are kept for chord steps (:meth:`step`)."""
         p = self.p
         live = np.arange(p) if self.live is None else self.live
         m = live.size
@@ -211,6 +213,7 @@ class TrackFit:
         basis = jnp.zeros((chunks * size, p)).at[np.arange(m), live].set(1.0)
         h_tt, g_t = np.zeros((p, p)), np.zeros(p)
         h_tz, h_zz, g_z = [], [], []
+        self._kept = [] if keep else None
         for b in self._batches():
             tr = self._tracks(b)
             r = np.asarray(self._resid(self.theta, self.z[b], *tr)).reshape(tr[0].shape[0], -1)
@@ -229,39 +232,70 @@ class TrackFit:
             h_tz.append(block)
             h_zz.append(np.einsum("nki,nkj->nij", jz, jz, optimize=True))
             g_z.append(np.einsum("nki,nk->ni", jz, r, optimize=True))
+            if self._kept is not None:
+                self._kept.append((b, live, jt, jz))
         if self.live is None:
             self.live = np.flatnonzero(np.diag(h_tt) > 0)
         return h_tt, g_t, np.concatenate(h_tz), np.concatenate(h_zz), np.concatenate(g_z)
 
-    def step(self) -> TrackFitStep:
+    def step(self, chord: int = 0) -> TrackFitStep:
         """One Levenberg–Marquardt iteration: the damped normal equations, reduced to the model's
         parameters (the start states' blocks eliminated), solved at rising damping until a step
-        lowers the objective (or the damping passes :data:`DAMPING_MAX`: not taken)."""
-        h_tt, g_t, h_tz, h_zz, g_z = self._normal_equations()
+        lowers the objective (or the damping passes :data:`DAMPING_MAX`: not taken); then up to
+        ``chord`` chord steps — the same matrix and damping, the gradient at the new point from
+        the same Jacobian (a residual evaluation, not a Jacobian) — each kept while it lowers
+        the objective."""
+        system = self._normal_equations(keep=chord > 0)
+        h_tt, _, _, h_zz, _ = system
         # Marquardt's scaling: the diagonal of JᵀJ, 1 where a parameter has no effect at all
         d_t, d_z = np.diag(h_tt), np.diagonal(h_zz, axis1=1, axis2=2)
-        d_t, d_z = np.where(d_t > 0, d_t, 1.0), np.where(d_z > 0, d_z, 1.0)
+        scale = (np.where(d_t > 0, d_t, 1.0), np.where(d_z > 0, d_z, 1.0))
         while self.damping <= DAMPING_MAX:
             lam = self.damping
-            a_zz = h_zz + lam * d_z[:, :, None] * np.eye(4)
-            inv_tz = np.linalg.solve(a_zz, np.transpose(h_tz, (0, 2, 1)))  # (N, 4, p)
-            inv_g = np.linalg.solve(a_zz, g_z[..., None])[..., 0]  # (N, 4)
-            reduced = h_tt + lam * np.diag(d_t) - np.einsum("npi,niq->pq", h_tz, inv_tz)
-            rhs = g_t - np.einsum("npi,ni->p", h_tz, inv_g)
-            try:
-                d_theta = -np.linalg.solve(reduced, rhs)
-            except np.linalg.LinAlgError:
-                self.damping *= 4.0
-                continue
-            d_z_step = -(inv_g + np.einsum("niq,q->ni", inv_tz, d_theta))
-            theta, z = self.theta + jnp.asarray(d_theta), self.z + jnp.asarray(d_z_step)
-            value = self._total_cost(theta, z)
-            if np.isfinite(value) and value < self.value:
-                self.theta, self.z, self.value = theta, z, value
+            if self._try(system, scale, lam):
                 self.damping = max(lam / 3.0, 1e-12)
+                for _ in range(chord):
+                    g_t, g_z = self._chord_gradient()
+                    if not self._try((system[0], g_t, system[2], system[3], g_z), scale, lam):
+                        break
+                self._kept = None
                 return TrackFitStep(self.model, self.mean_square, lam, True)
             self.damping *= 4.0
+        self._kept = None
         return TrackFitStep(self.model, self.mean_square, self.damping, False)
+
+    def _try(self, system: tuple[np.ndarray, ...], scale: tuple[np.ndarray, np.ndarray], lam: float) -> bool:
+        """Solve the damped system at damping ``lam`` and take the step where it lowers the
+        objective; whether it did."""
+        h_tt, g_t, h_tz, h_zz, g_z = system
+        d_t, d_z = scale
+        a_zz = h_zz + lam * d_z[:, :, None] * np.eye(4)
+        inv_tz = np.linalg.solve(a_zz, np.transpose(h_tz, (0, 2, 1)))  # (N, 4, p)
+        inv_g = np.linalg.solve(a_zz, g_z[..., None])[..., 0]  # (N, 4)
+        reduced = h_tt + lam * np.diag(d_t) - np.einsum("npi,niq->pq", h_tz, inv_tz)
+        rhs = g_t - np.einsum("npi,ni->p", h_tz, inv_g)
+        try:
+            d_theta = -np.linalg.solve(reduced, rhs)
+        except np.linalg.LinAlgError:
+            return False
+        d_z_step = -(inv_g + np.einsum("niq,q->ni", inv_tz, d_theta))
+        theta, z = self.theta + jnp.asarray(d_theta), self.z + jnp.asarray(d_z_step)
+        value = self._total_cost(theta, z)
+        if np.isfinite(value) and value < self.value:
+            self.theta, self.z, self.value = theta, z, value
+            return True
+        return False
+
+    def _chord_gradient(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(g_θ, g_z)`` at the current iterate from the Jacobian kept by the last normal
+        equations: ``(p,)``, ``(N, 4)``."""
+        g_t, g_z = np.zeros(self.p), []
+        for b, live, jt, jz in self._kept:
+            tr = self._tracks(b)
+            r = np.asarray(self._resid(self.theta, self.z[b], *tr)).reshape(jz.shape[0], -1)
+            g_t[live] += jt.reshape(live.size, -1) @ r.ravel()
+            g_z.append(np.einsum("nki,nk->ni", jz, r, optimize=True))
+        return g_t, np.concatenate(g_z)
 
 
 def _jitter(h: Array | np.ndarray) -> Array | np.ndarray:

@@ -71,6 +71,10 @@ class TrainConfig(Config):
     """Levenberg–Marquardt iterations on the whole training tracks after Adam and the polish, from the
     best model so far (0: none; :mod:`fhnn.training.tracks`; only for models that name their
     :meth:`~fhnn.models.base.AbstractModel.track_parameters`)."""
+    track_chord: int = 0
+    """Chord steps after each whole-track iteration: further steps with that iteration's Jacobian
+    and the gradient at the new point, each kept while it lowers the objective (0: none;
+    :meth:`~fhnn.training.tracks.TrackFit.step`)."""
     track_samples: int = 25_000
     """The most samples (tracks × their padded length) the whole-track fit holds, on the training
     tracks and on the validation tracks each; larger splits are cut into pieces and a seeded subset
@@ -142,7 +146,7 @@ class TrainConfig(Config):
         check_positive(self, "lbfgs_memory", "track_samples")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
         check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot", "shoot_skip")
-        check_nonnegative(self, "track_steps")
+        check_nonnegative(self, "track_steps", "track_chord")
         check_positive(self, "lbfgs_stride", "lr_c_l")
         check_nonnegative(self, "warmup_accept", "max_time")
         if self.shoot == 1:

@@ -304,7 +304,7 @@ class Trainer:
             return self._tracks_not_begun(state, done, left)
         for k in range(left):
             began = time.monotonic()
-            result = fit.step()
+            result = fit.step(cfg.track_chord)
             done += 1
             self._tell("tracks", done)
             if not result.accepted:
