@@ -33,3 +33,22 @@ def test_a_shown_result_is_stamped_with_the_current_code(path: Path) -> None:
         f"{stamp['commit']}) than the current ({source_digest(RESULT_SOURCES)}): regenerate it "
         "(docs/benchmarks.md names its script)"
     )
+
+
+def test_the_regeneration_writes_every_shown_result_file(monkeypatch) -> None:
+    """``benchmarks/regenerate.py --run`` reruns a command for each result file the site shows,
+    and no command writes a file the site does not show."""
+    import importlib.util
+
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    spec = importlib.util.spec_from_file_location("regenerate", ROOT / "benchmarks" / "regenerate.py")
+    regenerate = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(regenerate)
+    written = [
+        name for commands in regenerate.QUESTIONS.values() for names in commands.values() for name in names
+    ]
+    assert len(written) == len(set(written))
+    assert set(written) == {p.stem for p in (ROOT / "benchmarks" / "results").glob("*.json")}
+    for commands in regenerate.QUESTIONS.values():
+        for command in commands:
+            assert (ROOT / "benchmarks" / command.split()[0]).is_file(), command
