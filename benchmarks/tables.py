@@ -44,7 +44,7 @@ def _table(header: list[str], rows: list[list[str]], right: int = 1) -> str:
     return "\n".join(lines)
 
 
-def stamp_line(record: dict[str, Any], name: str) -> str:
+def stamp_line(record: dict[str, Any], name: str, folder: str = "benchmarks/results") -> str:
     """Which file, which commit and code, which machine, when."""
     made = record.get("provenance") or {}
     machine = made.get("machine") or {}
@@ -54,7 +54,7 @@ def stamp_line(record: dict[str, Any], name: str) -> str:
     elif "seed_role" in record:
         seed = f" Data seeds {', '.join(map(str, record['data_seeds']))}: {record['seed_role']} seeds."
     return (
-        f"*From `benchmarks/results/{name}.json`: commit `{str(made.get('commit'))[:10]}`, source "
+        f"*From `{folder}/{name}.json`: commit `{str(made.get('commit'))[:10]}`, source "
         f"`{made.get('source')}`, {machine.get('cpu', '?')} ({machine.get('cores', '?')} cores), "
         f"{str(made.get('date', ''))[:10]}.{seed}*"
     )
@@ -370,8 +370,8 @@ def render_numbers(record: dict[str, Any]) -> str:
     return _table(["key", "value"], [[f"`{k}`", _g(v, 4)] for k, v in _leaves(record)])
 
 
-def render(name: str, record: dict[str, Any]) -> str:
-    """The Markdown of result file ``name`` (without ``.json``)."""
+def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results") -> str:
+    """The Markdown of result file ``name`` (without ``.json``) in ``folder``."""
     kinds = ("own_data", "fhnn_targets", "reproduction", "baselines", "track_fit_solvers", "calibration")
     base = next((b for b in kinds if name.startswith(b)), name)
     if f"render_{base}" in globals():
@@ -380,7 +380,7 @@ def render(name: str, record: dict[str, Any]) -> str:
         body = render_printed(record)
     else:
         body = render_numbers(record)
-    return body + "\n\n" + stamp_line(record, name)
+    return body + "\n\n" + stamp_line(record, name, folder)
 
 
 def result(name: str) -> dict[str, Any]:

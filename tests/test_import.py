@@ -618,6 +618,13 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     assert info.value.code == 0
     said = " ".join(capsys.readouterr().out.split())
     assert "are NOT determined by the data" in said
+    # the curvature says so too: the held masses scale with the drag along a flat direction, so
+    # their intervals are withheld, and the note names them
+    assert re.search(r"the data do not determine m_ax, m_ay\b", said), said
+    with pytest.raises(SystemExit) as info:
+        main(["inspect", str(folder / "unforced_run"), "--json"])
+    laplace = json.loads(capsys.readouterr().out)["coefficients"]["_laplace"]
+    assert not laplace["m_ax"]["determined"] and laplace["m_ax"]["lo"] is None
     assert "Training held the added masses to two constants (model.added_mass=constant)" in said
     coefficients = read_csv_columns(run / "coefficients.csv")
     assert list(coefficients) == ["r", "sigma", "m_ax", "m_ay", "c_q", "c_l", "drag"]
