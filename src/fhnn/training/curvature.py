@@ -37,8 +37,13 @@ Array = jax.Array
 #: floor the calibration compared: none of them held every quantity's truth in 9 of 10 choosing
 #: data sets (the design note "Intervals from curvature").
 FLOOR = 1e-16
-#: The share of a quantity's variance from directions below the floor past which its interval
-#: rests on the floor rather than on the data (``weak``).
+#: Eigenvalues of the unit-diagonal Gauss–Newton matrix below this share of the largest are not
+#: resolved: float64 rounding in forming and decomposing a matrix of a few hundred rows leaves
+#: errors of about that size, so an exactly flat direction (masses without forcing) shows there.
+RESOLVED = 1e-14
+#: The share of a quantity's variance from directions below the floor or unresolved
+#: (:data:`RESOLVED`) past which its interval rests on the floor rather than on the data
+#: (``weak``).
 WEAK_SHARE = 0.5
 
 
@@ -79,15 +84,17 @@ class Curvature:
 
         Returns:
             ``value``, ``sd``, ``lo``, ``hi`` ``(q,)``; ``floor_share`` ``(q,)``, the share of
-            each variance from directions below the floor; ``weak`` ``(q,)`` (bool), that share
-            above :data:`WEAK_SHARE`; and ``determined`` ``(q,)`` (bool), the interval narrower
-            than ``±|value|`` (a wider one does not fix even the quantity's scale).
+            each variance from directions below the floor or unresolved (:data:`RESOLVED`);
+            ``weak`` ``(q,)`` (bool), that share above :data:`WEAK_SHARE`; and ``determined``
+            ``(q,)`` (bool), the interval narrower than ``±|value|`` (a wider one does not fix
+            even the quantity's scale).
         """
         value = np.asarray(quantities(self.model_at(self.theta)))
         grad = np.asarray(jax.jacrev(lambda th: quantities(self.model_at(th)))(self.theta))
         along = (grad / self.scale) @ self.vectors  # (q, p): the gradient in the eigenbasis
-        level_floor = floor * max(float(self.values[-1]), 0.0)
-        below = self.values < level_floor
+        top = max(float(self.values[-1]), 0.0)
+        level_floor = floor * top
+        below = self.values < max(floor, RESOLVED) * top
         parts = along**2 / np.maximum(self.values, level_floor)
         total = parts.sum(axis=1)
         share = parts[:, below].sum(axis=1) / np.where(total > 0, total, 1.0)
@@ -140,4 +147,4 @@ def track_curvature(model: AbstractVectorField, split: Split, free: object | Non
     )
 
 
-__all__ = ["FLOOR", "WEAK_SHARE", "Curvature", "track_curvature"]
+__all__ = ["FLOOR", "RESOLVED", "WEAK_SHARE", "Curvature", "track_curvature"]
