@@ -563,7 +563,7 @@ def test_train_evaluate_inspect_on_imported_data(imported, capsys) -> None:
     config = Run.load(run).train_config
     assert (config.shoot, config.w_deriv, config.w_step, config.batch_size) == (8, 0.0, 0.0, 32)
     assert config.lr_c_l == ESTIMATED_VELOCITY_LR_C_L == 10.0
-    assert config.track_steps == 2 and ESTIMATED_VELOCITY_TRACK_STEPS == 20
+    assert config.track_steps == 2 and ESTIMATED_VELOCITY_TRACK_STEPS == 15
     assert [r["iteration"] for r in Run.load(run).state.history if r.get("phase") == "tracks"] == [1, 2]
     for args in (["evaluate", str(run), "--horizons", "1,3", "--json"], ["inspect", str(run)]):
         with pytest.raises(SystemExit) as info:
