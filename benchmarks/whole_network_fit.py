@@ -1,15 +1,15 @@
 """Does fitting the whole network on whole tracks take the flow's bias out, and what does it cost?
 
 From the default run on an own-data choosing seed (``benchmarks/own_data.py --data-seed N``
-first), every parameter of both nets is freed — not only the output layers and constants the
-default whole-track fit moves (:meth:`~fhnn.models.fhnn.FHNN.track_parameters`) — and the same
-objective (every training piece rolled out from its fitted start state, the sum of squared
-position residuals) is minimised matrix-free: Levenberg–Marquardt with the start states
-eliminated and each step solved by lineax's conjugate gradients, one Jacobian-vector and one
-transposed product through every track's rollout per inner iteration (optimistix's
+first), every parameter of both nets is freed (``track_parameters(whole=True)``), not only the
+output layers and constants the default whole-track fit moves, and the same objective (every
+training piece rolled out from its fitted start state, the sum of squared position residuals)
+is minimised matrix-free (:meth:`~fhnn.training.tracks.TrackFit.step_matrix_free`:
+Levenberg–Marquardt with the start states eliminated, each step by lineax's conjugate gradients
+on Jacobian-vector products). A dense solve in every parameter would need one forward-mode
+tangent per parameter, tens of times the default fit's cost; optimistix's
 ``LevenbergMarquardt`` with ``lineax.CG`` stops at the first inner solve that reaches its step
-cap, which at this conditioning is every one) (a dense solve in every parameter
-would need one forward-mode tangent per parameter, tens of times the default fit's cost).
+cap, which at this conditioning is every one.
 
 Printed and written (``--result``): parameters, cost per outer iteration, the training pieces'
 misfit, the validation forecasts and validation tracks' misfit as the default run's forecast
@@ -27,9 +27,6 @@ import time
 from pathlib import Path
 
 import equinox as eqx
-import jax
-import jax.numpy as jnp
-import lineax as lx
 import own_data
 from _common import check_choosing_seed, stamp
 from jax.flatten_util import ravel_pytree
@@ -39,15 +36,6 @@ from fhnn.training.tracks import ForecastScore, TrackFit, fitted_pieces, track_p
 
 #: Where the record goes (a design note cites it).
 DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
-
-
-def whole_network(model) -> object:
-    """The filter of every parameter :meth:`track_parameters` frees plus every array of both
-    nets' MLPs."""
-    free = model.track_parameters()
-    for pick in (lambda m: m.eom.coefficients.mlp, lambda m: m.eom.flow.mlp):
-        free = eqx.tree_at(pick, free, replace=jax.tree.map(eqx.is_inexact_array, pick(model)))
-    return free
 
 
 def scores(model, free, imported, scored, cfg) -> dict:
@@ -65,71 +53,21 @@ def scores(model, free, imported, scored, cfg) -> dict:
     }
 
 
-def levenberg_marquardt(fit: TrackFit, tracks: tuple, steps: int, cg_steps: int):
-    """``steps`` Levenberg–Marquardt iterations in every parameter of ``fit`` with the start
-    states eliminated: each solves ``(JᵀPJ + λI) δ = −JᵀPr`` (``P`` projects out each track's
-    start-state directions) by lineax's conjugate gradients, at most ``cg_steps`` products
-    ``v ↦ JᵀPJv`` (one JVP and one transposed JVP through every rollout), then moves the start
-    states to their Gauss–Newton optimum under the step. Returns the parameters, start states,
-    the seconds of each outer iteration and how many were taken."""
-    n_tracks = fit.z.shape[0]
-
-    def rows(th, zz):
-        return fit._resid(th, zz, *tracks).reshape(n_tracks, -1)
-
-    def pieces(theta, z):
-        r, lin = jax.linearize(lambda th: rows(th, z), theta)
-        back = jax.linear_transpose(lin, theta)
-        jz = fit._jz(theta, z, *tracks).reshape(n_tracks, -1, 4)  # each track's start-state block
-        hz = jnp.einsum("nki,nkj->nij", jz, jz)
-        hz = hz + 1e-12 * jnp.trace(hz, axis1=1, axis2=2)[:, None, None] * jnp.eye(4)
-
-        def project(u):
-            w = jnp.linalg.solve(hz, jnp.einsum("nki,nk->ni", jz, u)[..., None])[..., 0]
-            return u - jnp.einsum("nki,ni->nk", jz, w)
-
-        return r, lin, back, jz, hz, project
-
-    @jax.jit
-    def curvature_scale(theta, z):
-        _, lin, _, _, _, project = pieces(theta, z)
-        probes = jax.random.rademacher(jax.random.PRNGKey(0), (4, theta.size), dtype=theta.dtype)
-        return jnp.mean(jax.vmap(lambda v: jnp.sum(project(lin(v)) ** 2))(probes))
-
-    @jax.jit
-    def solve(theta, z, lam):
-        r, lin, back, jz, hz, project = pieces(theta, z)
-        g = back(project(r))[0]
-        op = lx.FunctionLinearOperator(
-            lambda v: back(project(lin(v)))[0] + lam * v,
-            jax.eval_shape(lambda: theta),
-            lx.positive_semidefinite_tag,
-        )
-        step = lx.linear_solve(op, -g, lx.CG(rtol=1e-6, atol=0.0, max_steps=cg_steps), throw=False).value
-        moved = r + lin(step)
-        dz = -jnp.linalg.solve(hz, jnp.einsum("nki,nk->ni", jz, moved)[..., None])[..., 0]
-        return step, dz
-
-    theta, z = fit.theta, fit.z
-    value = float(jnp.sum(rows(theta, z) ** 2))
-    lam = 1e-3 * float(curvature_scale(theta, z))  # a thousandth of the mean curvature
+def iterate(fit: TrackFit, steps: int, cg_steps: int) -> tuple[list[float], int]:
+    """``steps`` matrix-free iterations of ``fit``; each one's seconds and how many were taken."""
     times: list[float] = []
-    taken = 0
     for _ in range(steps):
         began = time.perf_counter()
-        while True:
-            step, dz = solve(theta, z, lam)
-            new = float(jnp.sum(rows(theta + step, z + dz) ** 2))
-            if new < value:
-                theta, z, value, lam = theta + step, z + dz, new, lam / 3
-                taken += 1
-                break
-            lam *= 4
-            if lam > 1e20:
-                return theta, z, times, taken
+        result = fit.step_matrix_free(cg_steps)
+        if not result.accepted:
+            break
         times.append(time.perf_counter() - began)
-        print(f"iteration {taken}: mean square {value / fit.n:.6e} m², λ {lam:.2e}, {times[-1]:.1f} s")
-    return theta, z, times, taken
+        print(
+            f"iteration {len(times)}: mean square {result.mean_square:.6e} m², λ {result.damping:.2e}, "
+            f"{times[-1]:.1f} s",
+            flush=True,
+        )
+    return times, len(times)
 
 
 def main() -> None:
@@ -144,19 +82,16 @@ def main() -> None:
     imported, scored, run = own_data.trained_run(args.out, args.data_seed)
     cfg = run.config.train
     model = run.state.best_model
-    free = whole_network(model)
+    free = model.track_parameters(whole=True)
     pieces = fitted_pieces(imported.train, cfg.track_samples, cfg.seed)[0]
     fit = TrackFit(model, free, pieces)
-    tracks = fit._tracks(slice(None))
     default_p = int(ravel_pytree(eqx.filter(model, model.track_parameters()))[0].size)
     print(f"{fit.p} parameters ({default_p} in the default fit), {fit.n_tracks} pieces, {fit.n} residuals")
     before = {"train_mean_square_m2": fit.mean_square, **scores(model, free, imported, scored, cfg)}
     print("before", before, flush=True)
 
-    theta, z, seconds, steps = levenberg_marquardt(fit, tracks, args.steps, args.cg_steps)
-    train_ms = float(jnp.sum(fit._resid(theta, z, *tracks) ** 2)) / fit.n
-    after_model = fit.model_at(theta)
-    after = {"train_mean_square_m2": train_ms, **scores(after_model, free, imported, scored, cfg)}
+    seconds, steps = iterate(fit, args.steps, args.cg_steps)
+    after = {"train_mean_square_m2": fit.mean_square, **scores(fit.model, free, imported, scored, cfg)}
     print("after", after, flush=True)
     record = {
         **stamp(),

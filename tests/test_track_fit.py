@@ -172,13 +172,16 @@ def test_chord_steps_only_lower_the_objective_and_reuse_the_jacobian(setting, mo
 
 def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     """``train.track_steps``: after Adam, records of phase "tracks" at the steps after Adam's (the
-    first saying how many tracks ``train.track_samples`` let the fit hold), the run finished (a
-    second call trains nothing); a model that names no track parameters (the neural ODE) passes
-    the phase without records; a negative count is refused."""
+    first saying how many tracks ``train.track_samples`` let the fit hold; the second, with
+    ``track_whole=1``, in every parameter), the run finished (a second call trains nothing); a
+    model that names no track parameters (the neural ODE) passes the phase without records; a
+    negative count, or more matrix-free iterations than iterations, is refused."""
     ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
     # a budget one sample short of the training tracks: the fit holds all but one of them
     budget = ds.train.n_traj * ds.train.n_times - 1
-    config = paper_train(steps=4, val_every=2, batch_size=16, track_steps=2, track_samples=budget)
+    config = paper_train(
+        steps=4, val_every=2, batch_size=16, track_steps=2, track_samples=budget, track_whole=1
+    )
     run = Run.create(tmp_path / "fhnn", ds, RunConfig(model=paper_fhnn(width=8), train=config))
     state = run.train(ds)
     tracks = [r for r in state.history if r.get("phase") == "tracks"]
@@ -200,6 +203,35 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     assert not any(r.get("phase") == "tracks" for r in state.history)
     with pytest.raises(ConfigError, match="track_steps"):
         paper_train(track_steps=-1)
+    with pytest.raises(ConfigError, match=r"track_whole \(3\) counts among track_steps \(2\)"):
+        paper_train(track_steps=2, track_whole=3)
+
+
+def test_a_matrix_free_step_is_the_dense_gauss_newton_step(setting):
+    """In every parameter of both nets, the matrix-free step (conjugate gradients on the
+    normal equations with the start states projected out) equals the dense Gauss–Newton step at
+    the same damping ``λI``, start states included; a fit freeing other parameters keeps the
+    start states and objective; matrix-free iterations only lower the objective."""
+    model, _, _, exact = setting
+    whole = model.track_parameters(whole=True)
+    fit = TrackFit(model, model.track_parameters(), exact).freeing(whole)
+    assert fit.p > 2 * TrackFit(model, model.track_parameters(), exact).p
+    tracks = fit._tracks(slice(None))
+    scale, solve = track_module._matrix_free_programs(fit._resid, fit._jz, exact.n_traj, 60)
+    lam = 0.1 * fit.p * float(scale(fit.theta, fit.z, *tracks))  # a tenth of the trace: well conditioned
+    d_theta, d_z = solve(fit.theta, fit.z, jnp.asarray(lam), *tracks)
+    _, g_t, h_tz, h_zz, g_z = fit._normal_equations()
+    h_zz = h_zz + track_module._jitter(h_zz)
+    reduced_g = g_t - np.einsum("npi,ni->p", h_tz, np.linalg.solve(h_zz, g_z[..., None])[..., 0])
+    want = -np.linalg.solve(fit.gauss_newton() + lam * np.eye(fit.p), reduced_g)
+    want_z = -np.linalg.solve(h_zz, (g_z + np.einsum("npi,p->ni", h_tz, want))[..., None])[..., 0]
+    np.testing.assert_allclose(d_theta, want, rtol=1e-4, atol=1e-4 * np.abs(want).max())
+    np.testing.assert_allclose(d_z, want_z, rtol=1e-4, atol=1e-4 * np.abs(want_z).max())
+    values = [fit.value]
+    for _ in range(3):
+        assert fit.step_matrix_free(20).accepted
+        values.append(fit.value)
+    assert np.all(np.diff(values) < 0)
 
 
 @pytest.mark.parametrize(

@@ -18,6 +18,12 @@ track (a 4-column block each); the normal equations are reduced to the model's p
 Schur complement of the start states' 4×4 blocks, so memory grows with the number of parameters
 squared, not with the data. Marquardt's damping ``λ·diag(JᵀJ)`` rises ×4 on a rejected step and
 falls ×3 on an accepted one.
+
+Where the parameters are too many for that (every weight of both nets,
+:meth:`TrackFit.step_matrix_free`), each step is solved without forming ``JᵀJ``: lineax's
+conjugate gradients on the normal equations reduced by the same start-state blocks, each product
+one Jacobian-vector product and its transpose through every track's rollout, so an iteration
+costs the same whatever the number of parameters.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from dataclasses import dataclass
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import lineax as lx
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
@@ -47,6 +54,10 @@ TRACK_BATCH = 64
 DAMPING_START = 1e-3
 #: Damping past which an iteration gives up (no step lowers the objective).
 DAMPING_MAX = 1e8
+#: First damping of the matrix-free iterations (``λ·I``), relative to the mean diagonal of the
+#: reduced ``JᵀJ`` (estimated from random probes), as :data:`DAMPING_START` is to each diagonal
+#: element in the dense iterations.
+MATRIX_FREE_DAMPING = 1e-3
 #: Samples of the longest piece a track is cut into when the fit must be cut down to its size
 #: (:func:`track_pieces`): 25 s at 0.05 s, longer than issue 14's 20 s tracks, on which the
 #: split was found.
@@ -89,6 +100,7 @@ class TrackFit:
         weights: np.ndarray | None = None,
         mask: np.ndarray | None = None,
     ) -> None:
+        self._given = (split, weights, mask)
         params, self._static = eqx.partition(model, free)
         theta, self._unravel = ravel_pytree(params)
         self.theta = jnp.asarray(theta)
@@ -110,11 +122,21 @@ class TrackFit:
         #: The parameters whose Jacobian column is not zero (``None`` until the first iteration).
         self.live: np.ndarray | None = None
         self._kept: list[tuple[slice, np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._matrix_free: tuple[Callable[..., Array], ...] | None = None
+        self._mf_damping = self._mf_first = 0.0
         resid, self._jz, self._jtheta = _programs(self._static, self._unravel, split.switch is not None)
         self._resid = resid
         self._cost = jax.jit(lambda th, z, *tr: jnp.sum(resid(th, z, *tr) ** 2))
         self.z = self._fit_starts(4)
         self.value = self._total_cost(self.theta, self.z)
+
+    def freeing(self, free: object) -> TrackFit:
+        """The same fit (tracks, weights, start states) at the current model with the parameters
+        ``free`` moving instead."""
+        other = TrackFit(self.model, free, *self._given)
+        other.z = self.z
+        other.value = other._total_cost(other.theta, other.z)
+        return other
 
     @property
     def model(self) -> AbstractVectorField:
@@ -264,6 +286,35 @@ class TrackFit:
         self._kept = None
         return TrackFitStep(self.model, self.mean_square, self.damping, False)
 
+    def step_matrix_free(self, cg_steps: int) -> TrackFitStep:
+        """One Levenberg–Marquardt iteration solved without forming ``JᵀJ``: ``(JᵀPJ + λI) δθ =
+        −JᵀPr`` by ``cg_steps`` conjugate-gradient products (lineax; fewer only where it converges
+        exactly; ``P`` projects out
+        each track's start-state directions, so the start states are eliminated as in
+        :meth:`step`), the start states then moved to their Gauss–Newton optimum under ``δθ``;
+        at rising damping (×4) until a step lowers the objective, or not taken where the damping
+        passes :data:`DAMPING_MAX` times its first value. Every track is in one program: its
+        memory grows with the samples held (:func:`track_pieces` bounds them)."""
+        if self._matrix_free is None:
+            self._matrix_free = _matrix_free_programs(self._resid, self._jz, self.z.shape[0], cg_steps)
+            scale, _ = self._matrix_free
+            tracks = self._tracks(slice(None))
+            self._mf_damping = MATRIX_FREE_DAMPING * float(scale(self.theta, self.z, *tracks))
+            self._mf_first = self._mf_damping
+        _, solve = self._matrix_free
+        tracks = self._tracks(slice(None))
+        while self._mf_damping <= DAMPING_MAX * self._mf_first:
+            lam = self._mf_damping
+            d_theta, d_z = solve(self.theta, self.z, jnp.asarray(lam), *tracks)
+            theta, z = self.theta + d_theta, self.z + d_z
+            value = self._total_cost(theta, z)
+            if np.isfinite(value) and value < self.value:
+                self.theta, self.z, self.value = theta, z, value
+                self._mf_damping = lam / 3.0
+                return TrackFitStep(self.model, self.mean_square, lam, True)
+            self._mf_damping *= 4.0
+        return TrackFitStep(self.model, self.mean_square, self._mf_damping, False)
+
     def _try(self, system: tuple[np.ndarray, ...], scale: tuple[np.ndarray, np.ndarray], lam: float) -> bool:
         """Solve the damped system at damping ``lam`` and take the step where it lowers the
         objective; whether it did."""
@@ -296,6 +347,49 @@ class TrackFit:
             g_t[live] += jt.reshape(live.size, -1) @ r.ravel()
             g_z.append(np.einsum("nki,nk->ni", jz, r, optimize=True))
         return g_t, np.concatenate(g_z)
+
+
+def _matrix_free_programs(
+    resid: Callable[..., Array], jac_z: Callable[..., Array], n_tracks: int, cg_steps: int
+) -> tuple[Callable[..., Array], ...]:
+    """The compiled parts of :meth:`TrackFit.step_matrix_free`: the mean diagonal of the reduced
+    ``JᵀPJ`` (its trace from four Rademacher probes, over ``p``), and the damped step
+    ``(δθ, δz)`` at damping ``λ``."""
+
+    def parts(theta: Array, z: Array, *tracks: Array) -> tuple:
+        r, lin = jax.linearize(lambda th: resid(th, z, *tracks).reshape(n_tracks, -1), theta)
+        back = jax.linear_transpose(lin, theta)
+        jz = jac_z(theta, z, *tracks).reshape(n_tracks, -1, 4)  # (N, K, 4)
+        hz = jnp.einsum("nki,nkj->nij", jz, jz)
+        hz = hz + _jitter(hz)
+
+        def project(u: Array) -> Array:  # (N, K): what the start states cannot absorb
+            w = jnp.linalg.solve(hz, jnp.einsum("nki,nk->ni", jz, u)[..., None])[..., 0]
+            return u - jnp.einsum("nki,ni->nk", jz, w)
+
+        return r, lin, back, jz, hz, project
+
+    def scale(theta: Array, z: Array, *tracks: Array) -> Array:
+        _, lin, _, _, _, project = parts(theta, z, *tracks)
+        probes = jax.random.rademacher(jax.random.PRNGKey(0), (4, theta.size), dtype=theta.dtype)
+        return jnp.mean(jax.vmap(lambda v: jnp.sum(project(lin(v)) ** 2))(probes)) / theta.size
+
+    def solve(theta: Array, z: Array, lam: Array, *tracks: Array) -> tuple[Array, Array]:
+        r, lin, back, jz, hz, project = parts(theta, z, *tracks)
+        op = lx.FunctionLinearOperator(
+            lambda v: back(project(lin(v)))[0] + lam * v,
+            jax.eval_shape(lambda: theta),
+            lx.positive_semidefinite_tag,
+        )
+        rhs = -back(project(r))[0]
+        # no tolerance: exactly ``cg_steps`` products (lineax's test is per element, and the
+        # parameters that move no residual have zero there, which it reads as converged)
+        d_theta = lx.linear_solve(op, rhs, lx.CG(rtol=0.0, atol=0.0, max_steps=cg_steps), throw=False).value
+        moved = r + lin(d_theta)
+        d_z = -jnp.linalg.solve(hz, jnp.einsum("nki,nk->ni", jz, moved)[..., None])[..., 0]
+        return d_theta, d_z
+
+    return jax.jit(scale), jax.jit(solve)
 
 
 def _jitter(h: Array | np.ndarray) -> Array | np.ndarray:

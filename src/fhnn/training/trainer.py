@@ -261,7 +261,8 @@ class Trainer:
     ) -> TrainState:
         """The whole-track fit: ``track_steps`` Levenberg–Marquardt iterations on every training
         track (:class:`~fhnn.training.tracks.TrackFit`; under ``bootstrap`` each track weighted as
-        its windows are) from the best model so far.
+        its windows are) from the best model so far; the last ``track_whole`` of them in every
+        parameter, matrix-free.
 
         Each iterate is recorded with ``track_mean_square``, the mean square position residual
         per axis [m²] on the training tracks, ``val_track_mean_square``, the same on the
@@ -297,14 +298,26 @@ class Trainer:
         took = time.monotonic() - began
         if time.monotonic() + took >= self.deadline("tracks"):  # before the validation fits' setup
             return self._tracks_not_begun(state, done, left)
-        held_out = TrackFit(start, free, track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0])
+        val_pieces = track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0]
+        held_out = TrackFit(start, free, val_pieces)
         forecasts = ForecastScore(start, free, self.val_split, cfg.track_samples, cfg.seed + 7)
         guard = forecasts(fit.theta)
         if time.monotonic() + took >= self.deadline("tracks"):
             return self._tracks_not_begun(state, done, left)
+        whole_from = cfg.track_steps - cfg.track_whole  # the first matrix-free iteration's index
         for k in range(left):
             began = time.monotonic()
-            result = fit.step(cfg.track_chord)
+            index = cfg.track_steps - left + k  # among the phase's iterations, from 0
+            if cfg.track_whole and index == max(whole_from, cfg.track_steps - left):
+                # from here every weight moves: the fit and the validation scores in all of them
+                whole = fit.model.track_parameters(whole=True)
+                fit = fit.freeing(whole)
+                held_out = TrackFit(fit.model, whole, val_pieces)
+                forecasts = ForecastScore(fit.model, whole, self.val_split, cfg.track_samples, cfg.seed + 7)
+            if index >= whole_from:
+                result = fit.step_matrix_free(cfg.track_cg_steps)
+            else:
+                result = fit.step(cfg.track_chord)
             done += 1
             self._tell("tracks", done)
             if not result.accepted:
