@@ -217,7 +217,7 @@ def test_a_matrix_free_step_is_the_dense_gauss_newton_step(setting):
     fit = TrackFit(model, model.track_parameters(), exact).freeing(whole)
     assert fit.p > 2 * TrackFit(model, model.track_parameters(), exact).p
     tracks = fit._tracks(slice(None))
-    scale, solve = track_module._matrix_free_programs(fit._resid, fit._jz, exact.n_traj, 60)
+    scale, solve = track_module._matrix_free_programs(fit._resid, fit._jz, exact.n_traj, 20)
     lam = 0.1 * fit.p * float(scale(fit.theta, fit.z, *tracks))  # a tenth of the trace: well conditioned
     d_theta, d_z = solve(fit.theta, fit.z, jnp.asarray(lam), *tracks)
     _, g_t, h_tz, h_zz, g_z = fit._normal_equations()
