@@ -35,10 +35,16 @@ def seconds_per_call(fn: Callable[[], Any], repeats: int) -> float:
     return (time.perf_counter() - t0) / repeats
 
 
+#: The provenance as the script started: the code it runs is the code it loaded then, not what
+#: the source tree holds when it ends (it may have changed during a run of hours).
+_STARTED = provenance()
+
+
 def stamp() -> dict:
-    """The provenance a result file records (:func:`fhnn.runtime.provenance`): its ``commit``
-    (with ``+dirty`` where the package's source has changes) at the top, for the docs' list."""
-    record = provenance()
+    """The provenance a result file records (:func:`fhnn.runtime.provenance`, taken as the
+    script started; its date when the result is written): its ``commit`` (with ``+dirty`` where
+    the package's source had changes) at the top, for the docs' list."""
+    record = {**_STARTED, "date": provenance()["date"]}
     commit = record["commit"] or "unknown"
     return {"commit": commit + ("+dirty" if record["dirty"] else ""), "provenance": record}
 

@@ -2,6 +2,7 @@
 
     python benchmarks/regenerate.py          # the README's results block from the result files
     python benchmarks/regenerate.py --run    # first every benchmark (hours on 2 cores), then that
+    python benchmarks/regenerate.py --run --only reproduction,fhnn_targets   # some of them
 
 ``--run`` runs, one after another, each script that answers a question and writes
 ``benchmarks/results/NAME.json`` (:data:`QUESTIONS`), then the full reproduction into
@@ -44,6 +45,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "track_fit_solvers.py --tracks 48 --widths 32 --duration 20 --solvers trackfit,qr --steps 10 "
         "--result track_fit_solvers_own_data_size": ["track_fit_solvers_own_data_size"],
     },
+    "Are the intervals honest?": {"laplace_exact.py": ["laplace_exact"]},
     "How fast?": {
         "quick_reproduction.py": ["quick_reproduction"],
         "own_data.py --speed-only": ["import_speed"],
@@ -65,23 +67,46 @@ def write_readme(root: Path = ROOT) -> bool:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--run", action="store_true", help="run every benchmark and the full reproduction first")
+    p.add_argument(
+        "--only",
+        default=None,
+        help="with --run: only the commands writing these results (comma-separated names of "
+        "benchmarks/results files, or 'reproduction'), in the order given; a regeneration spread "
+        "over several sittings",
+    )
     args = p.parse_args()
     here = Path(__file__).resolve().parent
-    if args.run:
-        for question, commands in QUESTIONS.items():
-            print(question, flush=True)
-            for command in commands:
-                script, *arguments = command.split()
-                subprocess.run([sys.executable, str(here / script), *arguments], check=True)
-        with tempfile.TemporaryDirectory() as tmp:
-            subprocess.run(["fhnn", "reproduce", "-o", tmp, "-q"], check=True)
-            for name in ("reproduce.json", "timings.json"):
-                shutil.copy(Path(tmp) / name, ROOT / "docs" / "reproduction" / name)
-            for name in ("tables.json", "tables.md"):
-                shutil.copy(Path(tmp) / "tables" / name, ROOT / "docs" / "reproduction" / name)
-            for png in (Path(tmp) / "figures").glob("*.png"):
-                shutil.copy(png, ROOT / "docs" / "reproduction" / png.name)
+    commands = {c: names for question in QUESTIONS.values() for c, names in question.items()}
+    wanted = None if args.only is None else args.only.split(",")
+    known = {n for names in commands.values() for n in names} | {"reproduction"}
+    if wanted is not None and not set(wanted) <= known:
+        unknown = ", ".join(sorted(set(wanted) - known))
+        p.error(f"--only: unknown result(s) {unknown}; known: {', '.join(sorted(known))}")
+    order = (
+        [*commands, "reproduction"]
+        if wanted is None
+        else [next((c for c, names in commands.items() if name in names), "reproduction") for name in wanted]
+    )
+    for command in order if args.run else ():
+        print(command, flush=True)
+        if command == "reproduction":
+            reproduce()
+        else:
+            script, *arguments = command.split()
+            subprocess.run([sys.executable, str(here / script), *arguments], check=True)
     print("README.md results block " + ("rewritten" if write_readme() else "unchanged"))
+
+
+def reproduce() -> None:
+    """The full reproduction, its files copied into ``docs/reproduction``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run(["fhnn", "reproduce", "-o", tmp, "-q"], check=True)
+        for name in ("reproduce.json", "timings.json"):
+            shutil.copy(Path(tmp) / name, ROOT / "docs" / "reproduction" / name)
+        for name in ("tables.json", "tables.md"):
+            shutil.copy(Path(tmp) / "tables" / name, ROOT / "docs" / "reproduction" / name)
+        for png in (Path(tmp) / "figures").glob("*.png"):
+            shutil.copy(png, ROOT / "docs" / "reproduction" / png.name)
 
 
 if __name__ == "__main__":

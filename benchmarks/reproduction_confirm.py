@@ -27,7 +27,7 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=None, help="reproduction folder (default: a temporary one)")
     args = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        out = args.out or Path(tmp)
+        out = args.out or Path(tmp) / "reproduction"  # a new folder: reproduce refuses a used one
         settings = Path(tmp) / "confirm.toml"
         settings.write_text(f'models = ["fhnn"]\nablations = []\n\n[data]\nseed = {args.data_seed}\n')
         subprocess.run(["fhnn", "reproduce", "-o", str(out), "-q", "--config", str(settings)], check=True)

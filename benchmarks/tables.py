@@ -32,7 +32,9 @@ def _ratio(value: float) -> str:
 
 
 def _pct(value: float | None, digits: int = 2) -> str:
-    return "—" if value is None else f"{100 * value:.{digits}g} %"
+    if value is None or not math.isfinite(value):
+        return "—"
+    return f"{100 * value:.{digits}g} %"
 
 
 def _table(header: list[str], rows: list[list[str]], right: int = 1) -> str:
@@ -42,13 +44,17 @@ def _table(header: list[str], rows: list[list[str]], right: int = 1) -> str:
     return "\n".join(lines)
 
 
-def stamp_line(record: dict[str, Any], name: str) -> str:
+def stamp_line(record: dict[str, Any], name: str, folder: str = "benchmarks/results") -> str:
     """Which file, which commit and code, which machine, when."""
     made = record.get("provenance") or {}
     machine = made.get("machine") or {}
-    seed = f" Data seed {record['data_seed']}: a {record['seed_role']} seed." if "seed_role" in record else ""
+    seed = ""
+    if "seed_role" in record and "data_seed" in record:
+        seed = f" Data seed {record['data_seed']}: a {record['seed_role']} seed."
+    elif "seed_role" in record:
+        seed = f" Data seeds {', '.join(map(str, record['data_seeds']))}: {record['seed_role']} seeds."
     return (
-        f"*From `benchmarks/results/{name}.json`: commit `{str(made.get('commit'))[:10]}`, source "
+        f"*From `{folder}/{name}.json`: commit `{str(made.get('commit'))[:10]}`, source "
         f"`{made.get('source')}`, {machine.get('cpu', '?')} ({machine.get('cores', '?')} cores), "
         f"{str(made.get('date', ''))[:10]}.{seed}*"
     )
@@ -295,6 +301,53 @@ def render_reproduction(record: dict[str, Any]) -> str:
     return _table(header, body)
 
 
+def render_laplace_exact(record: dict[str, Any]) -> str:
+    """Laplace sd against the estimates' spread over noise draws, where FHNN holds the truth."""
+    rows = [
+        [
+            name,
+            _g(r["true"], 4),
+            _g(r["mean_estimate"], 4),
+            _g(r["spread"]),
+            _g(r["mean_laplace_sd"]),
+            f"{r['spread_over_sd']:.2f}",
+            _pct(r["holds"]),
+        ]
+        for name, r in record["coefficients"].items()
+    ]
+    header = ["coefficient", "true", "mean estimate", "spread", "Laplace sd", "spread / sd", "90 % holds"]
+    caption = (
+        f"*{record['draws']} draws of {record['noise'] * 1e3:g} mm noise, {record['iterations']} "
+        f"Levenberg–Marquardt iterations each, eigenvalue floor {record['floor']:g}.*"
+    )
+    return _table(header, rows) + "\n\n" + caption
+
+
+def render_calibration(record: dict[str, Any]) -> str:
+    """Coverage over data sets: per eigenvalue floor (Laplace) or for the members (ensemble)."""
+    if record.get("method") != "laplace":
+        return render_numbers(record)
+    names = list(next(iter(record["summary"].values())))
+    header = ["floor", *names]
+    rows = []
+    for floor, table in record["summary"].items():
+        rows.append([f"{floor} holds", *(_pct(table[n]["holds"], 3) for n in names)])
+        rows.append([f"{floor} withheld", *(_pct(table[n]["withheld"], 3) for n in names)])
+        rows.append([f"{floor} width", *(_pct(table[n]["median_rel_width"]) for n in names)])
+    caption = (
+        f"*{len(record['data_seeds'])} data sets ({record['seed_role']} seeds "
+        f"{record['data_seeds'][0]}–{record['data_seeds'][-1]}), one `fhnn train` run each; per "
+        "floor the share of data sets whose 90 % interval holds the true median, the share "
+        "withheld (wider than the value) and the median relative width. Median relative error of "
+        "the estimates: "
+        + ", ".join(
+            f"{n} {_pct(next(iter(record['summary'].values()))[n]['median_rel_error'])}" for n in names
+        )
+        + ".*"
+    )
+    return _table(header, rows) + "\n\n" + caption
+
+
 def render_printed(record: dict[str, Any]) -> str:
     """What the script printed."""
     return "```text\n" + record["output"].rstrip() + "\n```"
@@ -317,9 +370,9 @@ def render_numbers(record: dict[str, Any]) -> str:
     return _table(["key", "value"], [[f"`{k}`", _g(v, 4)] for k, v in _leaves(record)])
 
 
-def render(name: str, record: dict[str, Any]) -> str:
-    """The Markdown of result file ``name`` (without ``.json``)."""
-    kinds = ("own_data", "fhnn_targets", "reproduction", "baselines", "track_fit_solvers")
+def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results") -> str:
+    """The Markdown of result file ``name`` (without ``.json``) in ``folder``."""
+    kinds = ("own_data", "fhnn_targets", "reproduction", "baselines", "track_fit_solvers", "calibration")
     base = next((b for b in kinds if name.startswith(b)), name)
     if f"render_{base}" in globals():
         body = globals()[f"render_{base}"](record)
@@ -327,7 +380,7 @@ def render(name: str, record: dict[str, Any]) -> str:
         body = render_printed(record)
     else:
         body = render_numbers(record)
-    return body + "\n\n" + stamp_line(record, name)
+    return body + "\n\n" + stamp_line(record, name, folder)
 
 
 def result(name: str) -> dict[str, Any]:

@@ -45,7 +45,7 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         markdown = markdown.replace(
             HEADLINE_MARK, tables.headline(cells) + "\n\n" + tables.scenario_line(cells)
         )
-    if "<!-- benchmark: " in markdown:
+    if "<!-- benchmark: " in markdown or "<!-- design-data: " in markdown:
         markdown = _benchmark_sections(markdown, root)
     if TIMING_MARK in markdown:
         markdown = markdown.replace(TIMING_MARK, reproduction_timing(root))
@@ -158,7 +158,8 @@ def _tables(root):
 
 def _benchmark_sections(markdown: str, root) -> str:
     """Each ``<!-- benchmark: NAME -->`` replaced by ``benchmarks/tables.py``'s rendering of
-    ``benchmarks/results/NAME.json``; a missing file fails the build."""
+    ``benchmarks/results/NAME.json``, each ``<!-- design-data: NAME -->`` by that of
+    ``docs/design/data/NAME.json`` (the record of a choice); a missing file fails the build."""
     import json
     import re
 
@@ -171,4 +172,12 @@ def _benchmark_sections(markdown: str, root) -> str:
             raise FileNotFoundError(f"docs: no result file {path} for <!-- benchmark: {name} -->")
         return tables.render(name, json.loads(path.read_text()))
 
+    def design(match: re.Match) -> str:
+        name = match.group(1)
+        path = root / "docs" / "design" / "data" / f"{name}.json"
+        if not path.is_file():
+            raise FileNotFoundError(f"docs: no design data {path} for <!-- design-data: {name} -->")
+        return tables.render(name, json.loads(path.read_text()), folder="docs/design/data")
+
+    markdown = re.sub(r"<!-- design-data: ([a-z0-9_]+) -->", design, markdown)
     return re.sub(r"<!-- benchmark: ([a-z0-9_]+) -->", one, markdown)

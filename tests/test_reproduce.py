@@ -493,11 +493,14 @@ def _reproduce_twice(out: Path) -> None:
     )
 
 
+@pytest.mark.slow
 def test_quick_reproduction_runs_every_table_and_renders(tmp_path: Path) -> None:
     """The README's main job as it is, all five scenarios in T4, every check of its report
-    (tests/report_checks.py), then again, which must run nothing and keep the report
-    (``benchmarks/quick_reproduction.py`` times it and makes the same checks; kills and resumes
-    of a reproduction: tests/test_faults.py)."""
+    (tests/report_checks.py), then again, which must run nothing and keep the report. Left out
+    of the default run (133 s of a worker in a 2-core suite): ``benchmarks/quick_reproduction.py``
+    runs the same command cold, warm and as a rerun and makes the same checks on both reports
+    (``benchmarks/results/quick_reproduction.json``); kills and resumes of a reproduction:
+    tests/test_faults.py."""
     _reproduce_twice(tmp_path / "report")
     check_report(
         tmp_path / "report",

@@ -54,6 +54,29 @@ def setting(tmp_path_factory):
     return model, free, truth, exact
 
 
+def test_only_parameters_that_move_a_residual_get_tangents(setting):
+    """After the first iteration the fit builds Jacobian columns only for the parameters that
+    move a residual: the coefficient net's ``c_l`` output row (weights and bias), overridden by
+    the constant ``c_l``, and the stream net's output bias (a constant in ψ moves no water) are
+    left out, and the next normal equations equal the full ones."""
+    model, free, _, exact = setting
+    fit = TrackFit(model, free, exact)
+    assert fit.live is None
+    full = fit._normal_equations()
+    width = model.eom.coefficients.mlp.layers[-1].weight.shape[1]
+    dead = np.setdiff1d(np.arange(fit.p), fit.live)
+    params = eqx.partition(model, free)[0]
+    stream_bias = model.eom.flow.mlp.layers[-1].bias.size
+    c_l_row = np.r_[np.arange(width * 3, width * 4), width * 4 + 3]  # weight row 3, bias[3]
+    coefficient_start = fit.p - width * 4 - 4 - 1  # the coefficient net's output layer, then c_l
+    assert jax.tree.leaves(params)[1].size == stream_bias == 1
+    np.testing.assert_array_equal(dead, np.r_[width, coefficient_start + c_l_row])
+    assert np.all(full[0][dead] == 0.0) and np.all(full[1][dead] == 0.0)
+    pruned = fit._normal_equations()
+    for a, b in zip(full, pruned, strict=True):
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-14 * np.max(np.abs(a)))
+
+
 def test_the_normal_equations_gradient_matches_finite_differences(setting):
     """``Jᵀr`` of the model's parameters and of the start states equals half the central finite
     difference of the summed squares along random directions."""
@@ -125,15 +148,40 @@ def test_it_recovers_an_exactly_representable_truth(setting):
             )
 
 
+def test_chord_steps_only_lower_the_objective_and_reuse_the_jacobian(setting, monkeypatch):
+    """An iteration with chord steps takes the same first step as one without (the same
+    normal equations, built once), then lowers the objective further with the kept Jacobian;
+    the kept blocks give the exact gradient at the point they were built."""
+    model, free, _, exact = setting
+    plain, chord = TrackFit(model, free, exact), TrackFit(model, free, exact)
+    plain.step()
+    built = []
+    inner = TrackFit._normal_equations
+    monkeypatch.setattr(
+        TrackFit, "_normal_equations", lambda self, keep=False: built.append(keep) or inner(self, keep)
+    )
+    chord.step(chord=3)
+    assert built == [True] and chord._kept is None
+    assert chord.value < 0.5 * plain.value  # the exact tracks: each chord step gains
+    check = TrackFit(model, free, exact)
+    _, g_t, _, _, g_z = check._normal_equations(keep=True)
+    got_t, got_z = check._chord_gradient()
+    np.testing.assert_allclose(got_t, g_t, rtol=1e-12, atol=1e-15 * np.abs(g_t).max())
+    np.testing.assert_allclose(got_z, g_z, rtol=1e-12, atol=1e-15 * np.abs(g_z).max())
+
+
 def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     """``train.track_steps``: after Adam, records of phase "tracks" at the steps after Adam's (the
-    first saying how many tracks ``train.track_samples`` let the fit hold), the run finished (a
-    second call trains nothing); a model that names no track parameters (the neural ODE) passes
-    the phase without records; a negative count is refused."""
+    first saying how many tracks ``train.track_samples`` let the fit hold; the second, with
+    ``track_whole=1``, in every parameter), the run finished (a second call trains nothing); a
+    model that names no track parameters (the neural ODE) passes the phase without records; a
+    negative count, or more matrix-free iterations than iterations, is refused."""
     ds = small_dataset("steady_vortex", n_traj=6, duration=3.0)
     # a budget one sample short of the training tracks: the fit holds all but one of them
     budget = ds.train.n_traj * ds.train.n_times - 1
-    config = paper_train(steps=4, val_every=2, batch_size=16, track_steps=2, track_samples=budget)
+    config = paper_train(
+        steps=4, val_every=2, batch_size=16, track_steps=2, track_samples=budget, track_whole=1
+    )
     run = Run.create(tmp_path / "fhnn", ds, RunConfig(model=paper_fhnn(width=8), train=config))
     state = run.train(ds)
     tracks = [r for r in state.history if r.get("phase") == "tracks"]
@@ -155,6 +203,35 @@ def test_it_is_the_last_phase_and_a_model_without_it_skips_it(tmp_path):
     assert not any(r.get("phase") == "tracks" for r in state.history)
     with pytest.raises(ConfigError, match="track_steps"):
         paper_train(track_steps=-1)
+    with pytest.raises(ConfigError, match=r"track_whole \(3\) counts among track_steps \(2\)"):
+        paper_train(track_steps=2, track_whole=3)
+
+
+def test_a_matrix_free_step_is_the_dense_gauss_newton_step(setting):
+    """In every parameter of both nets, the matrix-free step (conjugate gradients on the
+    normal equations with the start states projected out) equals the dense Gauss–Newton step at
+    the same damping ``λI``, start states included; a fit freeing other parameters keeps the
+    start states and objective; matrix-free iterations only lower the objective."""
+    model, _, _, exact = setting
+    whole = model.track_parameters(whole=True)
+    fit = TrackFit(model, model.track_parameters(), exact).freeing(whole)
+    assert fit.p > 2 * TrackFit(model, model.track_parameters(), exact).p
+    tracks = fit._tracks(slice(None))
+    scale, solve = track_module._matrix_free_programs(fit._resid, fit._jz, exact.n_traj, 20)
+    lam = 0.1 * fit.p * float(scale(fit.theta, fit.z, *tracks))  # a tenth of the trace: well conditioned
+    d_theta, d_z = solve(fit.theta, fit.z, jnp.asarray(lam), *tracks)
+    _, g_t, h_tz, h_zz, g_z = fit._normal_equations()
+    h_zz = h_zz + track_module._jitter(h_zz)
+    reduced_g = g_t - np.einsum("npi,ni->p", h_tz, np.linalg.solve(h_zz, g_z[..., None])[..., 0])
+    want = -np.linalg.solve(fit.gauss_newton() + lam * np.eye(fit.p), reduced_g)
+    want_z = -np.linalg.solve(h_zz, (g_z + np.einsum("npi,p->ni", h_tz, want))[..., None])[..., 0]
+    np.testing.assert_allclose(d_theta, want, rtol=1e-4, atol=1e-4 * np.abs(want).max())
+    np.testing.assert_allclose(d_z, want_z, rtol=1e-4, atol=1e-4 * np.abs(want_z).max())
+    values = [fit.value]
+    for _ in range(3):
+        assert fit.step_matrix_free(20).accepted
+        values.append(fit.value)
+    assert np.all(np.diff(values) < 0)
 
 
 @pytest.mark.parametrize(

@@ -22,6 +22,7 @@ from fhnn.evaluation.recovery import (
 )
 from fhnn.experiments.exports import ensemble_intervals, write_coefficients_csv, write_flow_netcdf
 from fhnn.experiments.figures import coefficient_figure, flow_figure
+from fhnn.experiments.laplace import identifiability_note, laplace_intervals
 from fhnn.training.ensemble import LEVEL, interval
 
 
@@ -153,6 +154,21 @@ def _exports(models: list[Any], dataset: Dataset, folder: Path) -> list[Path]:
 COEFFICIENT_UNITS = {"m_ax": "kg", "m_ay": "kg", "c_q": "–", "c_l": "N·s/m", "drag": "N·s/m"}
 
 
+#: The column of the Laplace intervals from the whole-track fit's curvature.
+LAPLACE_COLUMN = "90 % interval (curvature)"
+
+
+def laplace_text(laplace: dict[str, dict[str, Any]] | None, name: str) -> str:
+    """A quantity's Laplace interval as a table shows it: the bounds, "not determined" or "–"
+    (no curvature: a model without whole-track parameters)."""
+    if laplace is None:
+        return "–"
+    r = laplace[name]
+    if not r["determined"]:
+        return "not determined"
+    return f"{fmt(r['lo'])} – {fmt(r['hi'])}" + (" (weak)" if r["weak"] else "")
+
+
 def with_unit(name: str) -> str:
     """A coefficient's name with its unit, as the tables show it (``"m_ax [kg]"``)."""
     unit = COEFFICIENT_UNITS.get(name)
@@ -182,6 +198,8 @@ def _learned(fit: Fit, figures: bool) -> Inspection:
     """On imported data: the learned coefficients and flow, no truth to compare."""
     model, dataset, folder = fit.models[0], fit.dataset, fit.runs[0].folder
     coef = learned_coefficients(model.eom, dataset)
+    laplace = laplace_intervals(model, dataset, fit.runs[0].train_config)
+    coef["_laplace"] = laplace
     written = _exports([model], dataset, folder)
     if figures:
         written += flow_figure(model.flow, None, dataset, folder / "flow")
@@ -193,13 +211,14 @@ def _learned(fit: Fit, figures: bool) -> Inspection:
             with_unit(n),
             fmt(coef[n]["median"]),
             f"{fmt(coef[n]['learned_min'])} – {fmt(coef[n]['learned_max'])}",
+            laplace_text(laplace, n),
         ]
         for n in ("m_ax", "m_ay", "c_q", "c_l", "drag")
     ]
     sections: list[str | TableData] = [
         TableData(
             "learned coefficients over the (r, σ) the training data cover (σ in the learned flow)",
-            ["coefficient", "median", "range"],
+            ["coefficient", "median", "range", LAPLACE_COLUMN],
             rows,
         )
     ]
@@ -221,12 +240,24 @@ def _learned(fit: Fit, figures: bool) -> Inspection:
             + " The ratios:"
         )
         ratio_rows = [
-            [n, fmt(r["median"]), f"{fmt(r['learned_min'])} – {fmt(r['learned_max'])}"]
+            [
+                n,
+                fmt(r["median"]),
+                f"{fmt(r['learned_min'])} – {fmt(r['learned_max'])}",
+                laplace_text(laplace, n),
+            ]
             for n, r in coef["_ratios"].items()
         ]
         sections.append(
-            TableData("identifiable ratios over the covered (r, σ)", ["ratio", "median", "range"], ratio_rows)
+            TableData(
+                "identifiable ratios over the covered (r, σ)",
+                ["ratio", "median", "range", LAPLACE_COLUMN],
+                ratio_rows,
+            )
         )
+    note = identifiability_note(laplace) if laplace else None
+    if note:
+        sections.append(note)
     sections.append("written: " + ", ".join(str(f) for f in written))
     return Inspection("learned", coef, None, sections, written)
 
@@ -301,6 +332,8 @@ def _recovery(fit: Fit, figures: bool) -> Inspection:
     coef = coefficient_recovery(model.coefficients, dataset)
     flow = flow_recovery(model.flow, dataset)
     truth = dataset.equations()
+    laplace = laplace_intervals(model, dataset, run.train_config, truth.coefficients)
+    coef["_laplace"] = laplace
     written = _exports([model], dataset, folder)
     if figures:
         written += flow_figure(model.flow, truth.flow, dataset, folder / "flow")
@@ -317,6 +350,11 @@ def _recovery(fit: Fit, figures: bool) -> Inspection:
     if dataset.actuation != "none":  # unforced, even the total drag is fixed only relative to inertia
         sections.append(drag_note(coef["_coverage"]["sigma_min"]))
     sections.append(_bands_table(coef))
+    if laplace is not None:
+        sections.append(_laplace_table(laplace))
+        note = identifiability_note(laplace)
+        if note:
+            sections.append(note)
     still = coef["_near_initial"]
     if still:
         sections.append(
@@ -362,6 +400,25 @@ def _recovery_table(coef: dict[str, Any]) -> TableData:
     return TableData(
         "coefficients over the (r, σ) the training data covers",
         ["coefficient", "learned range", "true range", "mean rel. error", "max rel. error"],
+        rows,
+    )
+
+
+def _laplace_table(laplace: dict[str, dict[str, Any]]) -> TableData:
+    rows = [
+        [
+            with_unit(name),
+            fmt(r["median"]),
+            laplace_text(laplace, name),
+            fmt(r["true"]),
+            "–" if r["inside"] is None else ("yes" if r["inside"] else "no"),
+        ]
+        for name, r in laplace.items()
+    ]
+    return TableData(
+        "medians over the covered (r, σ) with 90 % intervals from the whole-track fit's curvature "
+        "(the data's noise, given the model's structure)",
+        ["quantity", "median", LAPLACE_COLUMN, "true median", "truth inside"],
         rows,
     )
 

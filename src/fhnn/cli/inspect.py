@@ -21,7 +21,9 @@ def inspect(
     """Learned coefficients against the truth, flow recovery, and figures (PNG) written into RUN,
     with the learned coefficients over the covered (r, σ) as coefficients.csv and the learned flow
     on a grid as flow.nc (NetCDF-4). On imported data (no truth): the learned coefficients over
-    the region the data cover, and the learned flow. On an ensemble (fhnn train --seeds N): every
+    the region the data cover, and the learned flow. A single run's coefficients come with 90 %
+    intervals from the whole-track fit's curvature and a note on what the data do not determine
+    (intervals withheld or marked weak). On an ensemble (fhnn train --seeds N): every
     coefficient and identifiable ratio with the members' median and 90 % interval (and whether it
     covers the truth), coefficients.csv with NAME_lo/NAME_hi columns and flow.nc with u_lo, u_hi, …"""
     result = inspect_fit(run_dir, data)

@@ -75,7 +75,8 @@ def drag_ratios(coefficients: np.ndarray, sigma: np.ndarray, body: dict[str, flo
     m_ax, m_ay, c_q, c_l = coefficients.T
     drag = drag_terms(coefficients, sigma, body)[1]
     inertia_x, inertia_y = body["M"] + m_ax, body["M"] + m_ay
-    return np.stack(
+    stack = jnp.stack if isinstance(coefficients, jax.Array) else np.stack
+    return stack(
         [
             c_l / inertia_x,
             c_l / inertia_y,
@@ -134,6 +135,23 @@ def coefficient_recovery(learned: AbstractCoefficients, dataset: Dataset) -> dic
         for i, name in enumerate(RATIO_NAMES)
     }
     return out
+
+
+#: What :func:`coefficient_medians` returns, in order: the coefficients, the total drag
+#: coefficient and the ratios.
+SUMMARY_NAMES = (*COEFFICIENT_NAMES, "drag", *RATIO_NAMES)
+
+
+def coefficient_medians(
+    coefficients: AbstractCoefficients, points: jax.Array, body: dict[str, float]
+) -> jax.Array:
+    """The median of each of :data:`SUMMARY_NAMES` over the ``(r, σ)`` points ``(P, 2)`` [m, m/s]
+    for the body constants ``body``, shape ``(11,)`` [kg, kg, 1, N·s/m, N·s/m, then the ratios'
+    units]. Traceable: a function JAX differentiates in the coefficients' parameters."""
+    got = jax.vmap(coefficients)(points[:, 0], points[:, 1])
+    drag = drag_terms(got, points[:, 1], body)[1]
+    table = jnp.concatenate([got, drag[:, None], drag_ratios(got, points[:, 1], body)], axis=1)
+    return jnp.median(table, axis=0)
 
 
 def drag_terms(

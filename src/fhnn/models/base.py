@@ -182,10 +182,11 @@ class AbstractModel(eqx.Module):
         """Consecutive samples per training example (2: a transition pair)."""
         return 2
 
-    def track_parameters(self) -> Any:
+    def track_parameters(self, whole: bool = False) -> Any:
         """The parameters the whole-track fit (:mod:`fhnn.training.tracks`) moves: a filter tree of
-        ``self`` (true at the leaves that move); ``None`` (default): the model has no whole-track
-        fit, and the phase is skipped."""
+        ``self`` (true at the leaves that move); with ``whole``, those of its matrix-free
+        iterations (``train.track_whole``), which may be every parameter. ``None`` (default): the
+        model has no whole-track fit, and the phase is skipped."""
         return None
 
     def quasi_newton_weights(self, batch: dict[str, Array]) -> Array | None:

@@ -328,14 +328,15 @@ class FHNN(AbstractVectorField):
         gradient disagree, and the line search fail); otherwise ``None``."""
         return _start_weights(self.eom, batch, self.slow_weight) if self.slow_weight > 0 else None
 
-    def track_parameters(self) -> Any:
+    def track_parameters(self, whole: bool = False) -> Any:
         """The output layers of the coefficient net and of the stream net (its MLP, where it has
         one), the constant ``c_l`` and the far-field flow's ``Q`` and ``b``: with a 64-wide net 331
         parameters, few enough for the whole-track fit's dense Gauss–Newton solve, and the ones
         the drag split and the flow's large-scale error move along (on issue 14's data, data
         seed 1, ``fhnn train``'s 20 iterations took ``c_l`` from 8.1 to 0.84 % off,
-        ``docs/design/data/own_data_seed1_tracks20.json``). ``None`` for a
-        flow that is not a :class:`StreamNet` or a coefficient law that is not a
+        ``docs/design/data/own_data_seed1_tracks20.json``). With ``whole``, besides these every
+        parameter of both nets (17,355 at width 64), for the matrix-free iterations. ``None``
+        for a flow that is not a :class:`StreamNet` or a coefficient law that is not a
         :class:`CoefficientNet`."""
         coef, flow = self.coefficients, self.flow
         if not isinstance(coef, CoefficientNet) or not isinstance(flow, StreamNet):
@@ -355,6 +356,12 @@ class FHNN(AbstractVectorField):
             picks += [lambda m: m.eom.flow.quadratic, lambda m: m.eom.flow.linear]
         for pick in picks:
             free = eqx.tree_at(pick, free, replace=True)
+        if whole:
+            nets: list[Callable[[FHNN], Any]] = [lambda m: m.eom.coefficients.mlp]
+            if flow.mlp is not None:
+                nets.append(lambda m: m.eom.flow.mlp)
+            for pick in nets:
+                free = eqx.tree_at(pick, free, replace=jax.tree.map(eqx.is_inexact_array, pick(self)))
         return free
 
     def warmup(self) -> tuple[FHNN, Callable[[FHNN], FHNN]] | None:

@@ -18,6 +18,12 @@ track (a 4-column block each); the normal equations are reduced to the model's p
 Schur complement of the start states' 4×4 blocks, so memory grows with the number of parameters
 squared, not with the data. Marquardt's damping ``λ·diag(JᵀJ)`` rises ×4 on a rejected step and
 falls ×3 on an accepted one.
+
+Where the parameters are too many for that (every weight of both nets,
+:meth:`TrackFit.step_matrix_free`), each step is solved without forming ``JᵀJ``: lineax's
+conjugate gradients on the normal equations reduced by the same start-state blocks, each product
+one Jacobian-vector product and its transpose through every track's rollout, so an iteration
+costs the same whatever the number of parameters.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from dataclasses import dataclass
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import lineax as lx
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
@@ -47,6 +54,10 @@ TRACK_BATCH = 64
 DAMPING_START = 1e-3
 #: Damping past which an iteration gives up (no step lowers the objective).
 DAMPING_MAX = 1e8
+#: First damping of the matrix-free iterations (``λ·I``), relative to the mean diagonal of the
+#: reduced ``JᵀJ`` (estimated from random probes), as :data:`DAMPING_START` is to each diagonal
+#: element in the dense iterations.
+MATRIX_FREE_DAMPING = 1e-3
 #: Samples of the longest piece a track is cut into when the fit must be cut down to its size
 #: (:func:`track_pieces`): 25 s at 0.05 s, longer than issue 14's 20 s tracks, on which the
 #: split was found.
@@ -89,6 +100,7 @@ class TrackFit:
         weights: np.ndarray | None = None,
         mask: np.ndarray | None = None,
     ) -> None:
+        self._given = (split, weights, mask)
         params, self._static = eqx.partition(model, free)
         theta, self._unravel = ravel_pytree(params)
         self.theta = jnp.asarray(theta)
@@ -107,15 +119,42 @@ class TrackFit:
         #: Each track's start state ``(N, 4)``: the split's first state, refined by the fit.
         self.z = jnp.asarray(split.states[:, 0])
         self.damping = DAMPING_START
+        #: The parameters whose Jacobian column is not zero (``None`` until the first iteration).
+        self.live: np.ndarray | None = None
+        self._kept: list[tuple[slice, np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._matrix_free: tuple[Callable[..., Array], ...] | None = None
+        self._mf_damping = self._mf_first = 0.0
         resid, self._jz, self._jtheta = _programs(self._static, self._unravel, split.switch is not None)
         self._resid = resid
         self._cost = jax.jit(lambda th, z, *tr: jnp.sum(resid(th, z, *tr) ** 2))
         self.z = self._fit_starts(4)
         self.value = self._total_cost(self.theta, self.z)
 
+    def freeing(self, free: object) -> TrackFit:
+        """The same fit (tracks, weights, start states) at the current model with the parameters
+        ``free`` moving instead."""
+        other = TrackFit(self.model, free, *self._given)
+        other.z = self.z
+        other.value = other._total_cost(other.theta, other.z)
+        return other
+
     @property
     def model(self) -> AbstractVectorField:
-        return eqx.combine(self._unravel(self.theta), self._static)
+        return self.model_at(self.theta)
+
+    def model_at(self, theta: Array) -> AbstractVectorField:
+        """The model with its free parameters set to ``theta`` ``(p,)`` (traceable: a function of
+        ``theta`` that JAX can differentiate)."""
+        return eqx.combine(self._unravel(theta), self._static)
+
+    def gauss_newton(self) -> np.ndarray:
+        """The Gauss–Newton matrix ``JᵀJ`` of the objective in the model's parameters at the
+        current iterate with the start states eliminated (the Schur complement of their 4×4
+        blocks: the curvature left once every start state has adapted), ``(p, p)`` [m²/unit²]."""
+        h_tt, _, h_tz, h_zz, _ = self._normal_equations()
+        inv_zt = np.linalg.solve(h_zz + _jitter(h_zz), np.transpose(h_tz, (0, 2, 1)))
+        reduced = h_tt - np.einsum("npi,niq->pq", h_tz, inv_zt)
+        return 0.5 * (reduced + reduced.T)
 
     @property
     def mean_square(self) -> float:
@@ -173,66 +212,190 @@ class TrackFit:
                 r = self._resid(self.theta, z[b], *tr).reshape(jz.shape[0], -1)
                 h = jnp.einsum("nki,nkj->nij", jz, jz)
                 g = jnp.einsum("nki,nk->ni", jz, r)
-                h = h + 1e-12 * jnp.trace(h, axis1=1, axis2=2)[:, None, None] * jnp.eye(4)
+                h = h + _jitter(h)
                 parts.append(z[b] - jnp.linalg.solve(h, g[..., None])[..., 0])
             z = jnp.concatenate(parts)
         return z
 
-    def _normal_equations(self) -> tuple[np.ndarray, ...]:
+    def _normal_equations(self, keep: bool = False) -> tuple[np.ndarray, ...]:
         """``(H_θθ, g_θ, H_θz, H_zz, g_z)`` of the Gauss–Newton system at the current iterate:
-        ``(p, p)``, ``(p,)``, ``(N, p, 4)``, ``(N, 4, 4)``, ``(N, 4)``."""
+        ``(p, p)``, ``(p,)``, ``(N, p, 4)``, ``(N, 4, 4)``, ``(N, 4)``.
+
+        Only the parameters whose Jacobian column was not zero at the first call get tangents
+        (:attr:`live`): a parameter that moves no residual at all (an output the model
+        overrides, such as the coefficient net's ``c_l`` beside the constant one) stays without
+        effect while only the fitted parameters move, and its rows stay zero. The live tangents
+        are spread evenly over the fewest chunks of at most :data:`TANGENT_CHUNK`. With ``keep``
+        the Jacobian's blocks are kept for chord steps (:meth:`step`)."""
         p = self.p
-        padded = -(-p // TANGENT_CHUNK) * TANGENT_CHUNK
-        basis = jnp.eye(padded, p)
+        live = np.arange(p) if self.live is None else self.live
+        m = live.size
+        chunks = max(1, -(-m // TANGENT_CHUNK))
+        size = -(-m // chunks)
+        basis = jnp.zeros((chunks * size, p)).at[np.arange(m), live].set(1.0)
         h_tt, g_t = np.zeros((p, p)), np.zeros(p)
         h_tz, h_zz, g_z = [], [], []
+        self._kept = [] if keep else None
         for b in self._batches():
             tr = self._tracks(b)
             r = np.asarray(self._resid(self.theta, self.z[b], *tr)).reshape(tr[0].shape[0], -1)
             jt = np.concatenate(
                 [
-                    np.asarray(self._jtheta(self.theta, self.z[b], basis[i : i + TANGENT_CHUNK], *tr))
-                    for i in range(0, padded, TANGENT_CHUNK)
+                    np.asarray(self._jtheta(self.theta, self.z[b], basis[i : i + size], *tr))
+                    for i in range(0, chunks * size, size)
                 ]
-            )[:p].reshape(p, r.shape[0], -1)  # (p, tracks, samples·2)
+            )[:m].reshape(m, r.shape[0], -1)  # (live, tracks, samples·2)
             jz = np.asarray(self._jz(self.theta, self.z[b], *tr)).reshape(r.shape[0], -1, 4)
-            flat = jt.reshape(p, -1)
-            h_tt += flat @ flat.T
-            g_t += flat @ r.ravel()
-            h_tz.append(np.einsum("pnk,nki->npi", jt, jz, optimize=True))
+            flat = jt.reshape(m, -1)
+            h_tt[np.ix_(live, live)] += flat @ flat.T
+            g_t[live] += flat @ r.ravel()
+            block = np.zeros((r.shape[0], p, 4))
+            block[:, live] = np.einsum("pnk,nki->npi", jt, jz, optimize=True)
+            h_tz.append(block)
             h_zz.append(np.einsum("nki,nkj->nij", jz, jz, optimize=True))
             g_z.append(np.einsum("nki,nk->ni", jz, r, optimize=True))
+            if self._kept is not None:
+                self._kept.append((b, live, jt, jz))
+        if self.live is None:
+            self.live = np.flatnonzero(np.diag(h_tt) > 0)
         return h_tt, g_t, np.concatenate(h_tz), np.concatenate(h_zz), np.concatenate(g_z)
 
-    def step(self) -> TrackFitStep:
+    def step(self, chord: int = 0) -> TrackFitStep:
         """One Levenberg–Marquardt iteration: the damped normal equations, reduced to the model's
         parameters (the start states' blocks eliminated), solved at rising damping until a step
-        lowers the objective (or the damping passes :data:`DAMPING_MAX`: not taken)."""
-        h_tt, g_t, h_tz, h_zz, g_z = self._normal_equations()
+        lowers the objective (or the damping passes :data:`DAMPING_MAX`: not taken); then up to
+        ``chord`` chord steps — the same matrix and damping, the gradient at the new point from
+        the same Jacobian (a residual evaluation, not a Jacobian) — each kept while it lowers
+        the objective."""
+        system = self._normal_equations(keep=chord > 0)
+        h_tt, _, _, h_zz, _ = system
         # Marquardt's scaling: the diagonal of JᵀJ, 1 where a parameter has no effect at all
         d_t, d_z = np.diag(h_tt), np.diagonal(h_zz, axis1=1, axis2=2)
-        d_t, d_z = np.where(d_t > 0, d_t, 1.0), np.where(d_z > 0, d_z, 1.0)
+        scale = (np.where(d_t > 0, d_t, 1.0), np.where(d_z > 0, d_z, 1.0))
         while self.damping <= DAMPING_MAX:
             lam = self.damping
-            a_zz = h_zz + lam * d_z[:, :, None] * np.eye(4)
-            inv_tz = np.linalg.solve(a_zz, np.transpose(h_tz, (0, 2, 1)))  # (N, 4, p)
-            inv_g = np.linalg.solve(a_zz, g_z[..., None])[..., 0]  # (N, 4)
-            reduced = h_tt + lam * np.diag(d_t) - np.einsum("npi,niq->pq", h_tz, inv_tz)
-            rhs = g_t - np.einsum("npi,ni->p", h_tz, inv_g)
-            try:
-                d_theta = -np.linalg.solve(reduced, rhs)
-            except np.linalg.LinAlgError:
-                self.damping *= 4.0
-                continue
-            d_z_step = -(inv_g + np.einsum("niq,q->ni", inv_tz, d_theta))
-            theta, z = self.theta + jnp.asarray(d_theta), self.z + jnp.asarray(d_z_step)
+            if self._try(system, scale, lam):
+                self.damping = max(lam / 3.0, 1e-12)
+                for _ in range(chord):
+                    g_t, g_z = self._chord_gradient()
+                    if not self._try((system[0], g_t, system[2], system[3], g_z), scale, lam):
+                        break
+                self._kept = None
+                return TrackFitStep(self.model, self.mean_square, lam, True)
+            self.damping *= 4.0
+        self._kept = None
+        return TrackFitStep(self.model, self.mean_square, self.damping, False)
+
+    def step_matrix_free(self, cg_steps: int) -> TrackFitStep:
+        """One Levenberg–Marquardt iteration solved without forming ``JᵀJ``: ``(JᵀPJ + λI) δθ =
+        −JᵀPr`` by ``cg_steps`` conjugate-gradient products (lineax; fewer only where it converges
+        exactly; ``P`` projects out
+        each track's start-state directions, so the start states are eliminated as in
+        :meth:`step`), the start states then moved to their Gauss–Newton optimum under ``δθ``;
+        at rising damping (×4) until a step lowers the objective, or not taken where the damping
+        passes :data:`DAMPING_MAX` times its first value. Every track is in one program: its
+        memory grows with the samples held (:func:`track_pieces` bounds them)."""
+        if self._matrix_free is None:
+            self._matrix_free = _matrix_free_programs(self._resid, self._jz, self.z.shape[0], cg_steps)
+            scale, _ = self._matrix_free
+            tracks = self._tracks(slice(None))
+            self._mf_damping = MATRIX_FREE_DAMPING * float(scale(self.theta, self.z, *tracks))
+            self._mf_first = self._mf_damping
+        _, solve = self._matrix_free
+        tracks = self._tracks(slice(None))
+        while self._mf_damping <= DAMPING_MAX * self._mf_first:
+            lam = self._mf_damping
+            d_theta, d_z = solve(self.theta, self.z, jnp.asarray(lam), *tracks)
+            theta, z = self.theta + d_theta, self.z + d_z
             value = self._total_cost(theta, z)
             if np.isfinite(value) and value < self.value:
                 self.theta, self.z, self.value = theta, z, value
-                self.damping = max(lam / 3.0, 1e-12)
+                self._mf_damping = lam / 3.0
                 return TrackFitStep(self.model, self.mean_square, lam, True)
-            self.damping *= 4.0
-        return TrackFitStep(self.model, self.mean_square, self.damping, False)
+            self._mf_damping *= 4.0
+        return TrackFitStep(self.model, self.mean_square, self._mf_damping, False)
+
+    def _try(self, system: tuple[np.ndarray, ...], scale: tuple[np.ndarray, np.ndarray], lam: float) -> bool:
+        """Solve the damped system at damping ``lam`` and take the step where it lowers the
+        objective; whether it did."""
+        h_tt, g_t, h_tz, h_zz, g_z = system
+        d_t, d_z = scale
+        a_zz = h_zz + lam * d_z[:, :, None] * np.eye(4)
+        inv_tz = np.linalg.solve(a_zz, np.transpose(h_tz, (0, 2, 1)))  # (N, 4, p)
+        inv_g = np.linalg.solve(a_zz, g_z[..., None])[..., 0]  # (N, 4)
+        reduced = h_tt + lam * np.diag(d_t) - np.einsum("npi,niq->pq", h_tz, inv_tz)
+        rhs = g_t - np.einsum("npi,ni->p", h_tz, inv_g)
+        try:
+            d_theta = -np.linalg.solve(reduced, rhs)
+        except np.linalg.LinAlgError:
+            return False
+        d_z_step = -(inv_g + np.einsum("niq,q->ni", inv_tz, d_theta))
+        theta, z = self.theta + jnp.asarray(d_theta), self.z + jnp.asarray(d_z_step)
+        value = self._total_cost(theta, z)
+        if np.isfinite(value) and value < self.value:
+            self.theta, self.z, self.value = theta, z, value
+            return True
+        return False
+
+    def _chord_gradient(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(g_θ, g_z)`` at the current iterate from the Jacobian kept by the last normal
+        equations: ``(p,)``, ``(N, 4)``."""
+        g_t, g_z = np.zeros(self.p), []
+        for b, live, jt, jz in self._kept:
+            tr = self._tracks(b)
+            r = np.asarray(self._resid(self.theta, self.z[b], *tr)).reshape(jz.shape[0], -1)
+            g_t[live] += jt.reshape(live.size, -1) @ r.ravel()
+            g_z.append(np.einsum("nki,nk->ni", jz, r, optimize=True))
+        return g_t, np.concatenate(g_z)
+
+
+def _matrix_free_programs(
+    resid: Callable[..., Array], jac_z: Callable[..., Array], n_tracks: int, cg_steps: int
+) -> tuple[Callable[..., Array], ...]:
+    """The compiled parts of :meth:`TrackFit.step_matrix_free`: the mean diagonal of the reduced
+    ``JᵀPJ`` (its trace from four Rademacher probes, over ``p``), and the damped step
+    ``(δθ, δz)`` at damping ``λ``."""
+
+    def parts(theta: Array, z: Array, *tracks: Array) -> tuple:
+        r, lin = jax.linearize(lambda th: resid(th, z, *tracks).reshape(n_tracks, -1), theta)
+        back = jax.linear_transpose(lin, theta)
+        jz = jac_z(theta, z, *tracks).reshape(n_tracks, -1, 4)  # (N, K, 4)
+        hz = jnp.einsum("nki,nkj->nij", jz, jz)
+        hz = hz + _jitter(hz)
+
+        def project(u: Array) -> Array:  # (N, K): what the start states cannot absorb
+            w = jnp.linalg.solve(hz, jnp.einsum("nki,nk->ni", jz, u)[..., None])[..., 0]
+            return u - jnp.einsum("nki,ni->nk", jz, w)
+
+        return r, lin, back, jz, hz, project
+
+    def scale(theta: Array, z: Array, *tracks: Array) -> Array:
+        _, lin, _, _, _, project = parts(theta, z, *tracks)
+        probes = jax.random.rademacher(jax.random.PRNGKey(0), (4, theta.size), dtype=theta.dtype)
+        return jnp.mean(jax.vmap(lambda v: jnp.sum(project(lin(v)) ** 2))(probes)) / theta.size
+
+    def solve(theta: Array, z: Array, lam: Array, *tracks: Array) -> tuple[Array, Array]:
+        r, lin, back, jz, hz, project = parts(theta, z, *tracks)
+        op = lx.FunctionLinearOperator(
+            lambda v: back(project(lin(v)))[0] + lam * v,
+            jax.eval_shape(lambda: theta),
+            lx.positive_semidefinite_tag,
+        )
+        rhs = -back(project(r))[0]
+        # no tolerance: exactly ``cg_steps`` products (lineax's test is per element, and the
+        # parameters that move no residual have zero there, which it reads as converged)
+        d_theta = lx.linear_solve(op, rhs, lx.CG(rtol=0.0, atol=0.0, max_steps=cg_steps), throw=False).value
+        moved = r + lin(d_theta)
+        d_z = -jnp.linalg.solve(hz, jnp.einsum("nki,nk->ni", jz, moved)[..., None])[..., 0]
+        return d_theta, d_z
+
+    return jax.jit(scale), jax.jit(solve)
+
+
+def _jitter(h: Array | np.ndarray) -> Array | np.ndarray:
+    """A ridge of 1e-12 of each 4×4 block's trace ``(N, 4, 4)``: a start state that no sample
+    constrains (a one-sample piece's velocity) stays solvable."""
+    return 1e-12 * h.trace(axis1=1, axis2=2)[:, None, None] * np.eye(4)
 
 
 def track_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarray]:
@@ -268,6 +431,13 @@ def track_pieces(split: Split, budget: int, seed: int) -> tuple[Split, np.ndarra
     ranked = [pieces[i][r] for r in rounds for i in order if r < len(pieces[i])]
     kept = sorted(ranked[: max(1, budget // longest)])
     return _pieces(split, kept), np.asarray([i for i, _, _ in kept])
+
+
+def fitted_pieces(split: Split, track_samples: int, seed: int) -> tuple[Split, np.ndarray]:
+    """The pieces of ``split`` that the whole-track fit of a run trained with ``track_samples``
+    and ``seed`` (its :class:`~fhnn.training.train_config.TrainConfig`'s) fits:
+    :func:`track_pieces` with its seed."""
+    return track_pieces(split, track_samples, seed + 5)
 
 
 def _pieces(split: Split, kept: list[tuple[int, int, int]]) -> Split:

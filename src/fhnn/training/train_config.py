@@ -71,6 +71,17 @@ class TrainConfig(Config):
     """Levenberg–Marquardt iterations on the whole training tracks after Adam and the polish, from the
     best model so far (0: none; :mod:`fhnn.training.tracks`; only for models that name their
     :meth:`~fhnn.models.base.AbstractModel.track_parameters`)."""
+    track_chord: int = 0
+    """Chord steps after each whole-track iteration: further steps with that iteration's Jacobian
+    and the gradient at the new point, each kept while it lowers the objective (0: none;
+    :meth:`~fhnn.training.tracks.TrackFit.step`)."""
+    track_whole: int = 0
+    """How many of the last ``track_steps`` iterations free every parameter of the model
+    (:meth:`~fhnn.models.base.AbstractModel.track_parameters` with ``whole``: both nets entire)
+    and are solved matrix-free (:meth:`~fhnn.training.tracks.TrackFit.step_matrix_free`), at
+    about 0.5 s per product on the own-data benchmark's 49 tracks (0: none)."""
+    track_cg_steps: int = 40
+    """Conjugate-gradient products per matrix-free iteration (``track_whole``)."""
     track_samples: int = 25_000
     """The most samples (tracks × their padded length) the whole-track fit holds, on the training
     tracks and on the validation tracks each; larger splits are cut into pieces and a seeded subset
@@ -142,7 +153,13 @@ class TrainConfig(Config):
         check_positive(self, "lbfgs_memory", "track_samples")
         check_nonnegative(self, "w_deriv", "w_step", "lambda_flow", "flow_anneal", "seed", "lbfgs_steps")
         check_nonnegative(self, "steps", "warmup_steps", "stop_rising", "shoot", "w_shoot", "shoot_skip")
-        check_nonnegative(self, "track_steps")
+        check_nonnegative(self, "track_steps", "track_chord", "track_whole")
+        check_positive(self, "track_cg_steps")
+        if self.track_whole > self.track_steps:
+            raise ConfigError(
+                f"training: track_whole ({self.track_whole}) counts among track_steps ({self.track_steps})"
+                " and cannot exceed it"
+            )
         check_positive(self, "lbfgs_stride", "lr_c_l")
         check_nonnegative(self, "warmup_accept", "max_time")
         if self.shoot == 1:

@@ -52,7 +52,7 @@ from fhnn.training.budget import Budget
 from fhnn.training.losses import _validation_terms, data_loss, loss_terms
 from fhnn.training.quasi_newton import quasi_newton_objective, quasi_newton_step, strong_types
 from fhnn.training.sampling import bootstrap_weights, draw_batch
-from fhnn.training.tracks import ForecastScore, TrackFit, track_pieces
+from fhnn.training.tracks import ForecastScore, TrackFit, fitted_pieces, track_pieces
 from fhnn.training.train_config import (
     PENALTY_FREE_MIN_STEPS,
     QUASI_NEWTON_FIELDS,
@@ -261,7 +261,8 @@ class Trainer:
     ) -> TrainState:
         """The whole-track fit: ``track_steps`` Levenberg–Marquardt iterations on every training
         track (:class:`~fhnn.training.tracks.TrackFit`; under ``bootstrap`` each track weighted as
-        its windows are) from the best model so far.
+        its windows are) from the best model so far; the last ``track_whole`` of them in every
+        parameter, matrix-free.
 
         Each iterate is recorded with ``track_mean_square``, the mean square position residual
         per axis [m²] on the training tracks, ``val_track_mean_square``, the same on the
@@ -286,7 +287,7 @@ class Trainer:
         done = self.total_steps - left
         if time.monotonic() >= self.deadline("tracks"):
             return self._tracks_not_begun(state, done, left)
-        split, parent = track_pieces(self.train_split, cfg.track_samples, cfg.seed + 5)
+        split, parent = fitted_pieces(self.train_split, cfg.track_samples, cfg.seed)
         n_tracks = self.train_split.n_traj
         weights = None
         if cfg.bootstrap:  # each piece weighted as its track
@@ -297,14 +298,26 @@ class Trainer:
         took = time.monotonic() - began
         if time.monotonic() + took >= self.deadline("tracks"):  # before the validation fits' setup
             return self._tracks_not_begun(state, done, left)
-        held_out = TrackFit(start, free, track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0])
+        val_pieces = track_pieces(self.val_split, cfg.track_samples, cfg.seed + 6)[0]
+        held_out = TrackFit(start, free, val_pieces)
         forecasts = ForecastScore(start, free, self.val_split, cfg.track_samples, cfg.seed + 7)
         guard = forecasts(fit.theta)
         if time.monotonic() + took >= self.deadline("tracks"):
             return self._tracks_not_begun(state, done, left)
+        whole_from = cfg.track_steps - cfg.track_whole  # the first matrix-free iteration's index
         for k in range(left):
             began = time.monotonic()
-            result = fit.step()
+            index = cfg.track_steps - left + k  # among the phase's iterations, from 0
+            if cfg.track_whole and index == max(whole_from, cfg.track_steps - left):
+                # from here every weight moves: the fit and the validation scores in all of them
+                whole = fit.model.track_parameters(whole=True)
+                fit = fit.freeing(whole)
+                held_out = TrackFit(fit.model, whole, val_pieces)
+                forecasts = ForecastScore(fit.model, whole, self.val_split, cfg.track_samples, cfg.seed + 7)
+            if index >= whole_from:
+                result = fit.step_matrix_free(cfg.track_cg_steps)
+            else:
+                result = fit.step(cfg.track_chord)
             done += 1
             self._tell("tracks", done)
             if not result.accepted:
