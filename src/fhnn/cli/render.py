@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from fhnn.api.report import TableData, fmt
@@ -20,22 +21,23 @@ def note(text: str) -> None:
 
 
 def table(data: TableData) -> Table:
-    """``data`` as a Rich table: title on the left, every column right-aligned."""
-    out = Table(title=data.title, title_justify="left")
+    """``data`` as a Rich table: title on the left, every column right-aligned; its text is
+    shown as it is (a unit such as ``[kg]`` is not read as Rich markup)."""
+    out = Table(title=escape(data.title), title_justify="left")
     for col in data.columns:
-        out.add_column(col, justify="right")
+        out.add_column(escape(col), justify="right")
     for row in data.rows:
-        out.add_row(*row)
+        out.add_row(*(escape(cell) for cell in row))
     return out
 
 
 def sections(parts: list[str | TableData]) -> None:
-    """A report's lines and tables, in order, on standard output."""
+    """A report's lines and tables, in order, on standard output (text as it is, no markup)."""
     for part in parts:
         if isinstance(part, TableData):
             stdout.print(table(part))
         else:
-            stdout.print(part, soft_wrap=True)
+            stdout.print(part, soft_wrap=True, markup=False)
 
 
 def _law_text(law: dict[str, Any]) -> str:
