@@ -45,7 +45,10 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "track_fit_solvers.py --tracks 48 --widths 32 --duration 20 --solvers trackfit,qr --steps 10 "
         "--result track_fit_solvers_own_data_size": ["track_fit_solvers_own_data_size"],
     },
-    "Are the intervals honest?": {"laplace_exact.py": ["laplace_exact"]},
+    "Are the intervals honest?": {
+        "laplace_exact.py": ["laplace_exact"],
+        "calibration.py --role confirming --method laplace": ["calibration_laplace_confirming"],
+    },
     "How fast?": {
         "quick_reproduction.py": ["quick_reproduction"],
         "own_data.py --speed-only": ["import_speed"],
