@@ -13,6 +13,7 @@ from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import get_scenario
 from fhnn.runtime import provenance
+from fhnn.stamps import result_files
 
 
 def dataset(name: str, folder: Path, seed: int | None = None) -> tuple[Dataset, Path]:
@@ -35,9 +36,10 @@ def seconds_per_call(fn: Callable[[], Any], repeats: int) -> float:
     return (time.perf_counter() - t0) / repeats
 
 
-#: The provenance as the script started: the code it runs is the code it loaded then, not what
-#: the source tree holds when it ends (it may have changed during a run of hours).
-_STARTED = provenance()
+#: The provenance as the script started, with the files its digest covers
+#: (:func:`fhnn.stamps.result_files`): the code it runs is the code it loaded then, not what the
+#: source tree holds when it ends (it may have changed during a run of hours).
+_STARTED = {**provenance(), "files": result_files()}
 
 
 def stamp() -> dict:
