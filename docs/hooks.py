@@ -22,6 +22,10 @@ def cli_reference() -> str:
         command = group.get_command(ctx, name)  # type: ignore[attr-defined]
         sub = click.Context(command, info_name=f"fhnn {name}", parent=ctx, max_content_width=100)
         out += [f"## fhnn {name}", "", "```text", command.get_help(sub), "```", ""]
+        for part in getattr(command, "list_commands", lambda _: [])(sub):  # a group's commands
+            inner = command.get_command(sub, part)
+            deeper = click.Context(inner, info_name=f"fhnn {name} {part}", parent=sub, max_content_width=100)
+            out += [f"### fhnn {name} {part}", "", "```text", inner.get_help(deeper), "```", ""]
     return "\n".join(out)
 
 

@@ -25,6 +25,7 @@ from fhnn.cli import train  # noqa: F401
 from fhnn.cli import evaluate  # noqa: F401
 from fhnn.cli import inspect  # noqa: F401
 from fhnn.cli import reproduce  # noqa: F401
+from fhnn.cli import turning  # noqa: F401
 
 # isort: on
 

@@ -1,0 +1,134 @@
+"""Bodies that turn (3-DOF, docs/spec.md §7), from Python: simulate, train, save, load, evaluate.
+
+::
+
+    from fhnn.api.planar import simulate_turning, train_turning, evaluate_turning
+
+    data = simulate_turning("turning_vortex", seed=3)
+    fit = train_turning(data, out="runs/turning")      # model.eqx and run.json in runs/turning
+    report = evaluate_turning(fit.model, data)          # forecasts, added masses, damping, flow
+
+The command line and the point body's functions (:func:`fhnn.train` and the rest) do not take a
+turning body's data yet.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import jax
+
+from fhnn.data.planar import PlanarDataset, read_planar, simulate_planar, write_planar
+from fhnn.errors import DataFormatError
+from fhnn.evaluation.planar import evaluate_planar
+from fhnn.files import atomic_output, check_input_file
+from fhnn.models.planar import PlanarFHNN, PlanarModelConfig, build_planar_fhnn, planar_arguments
+from fhnn.training.planar import PlanarFit, PlanarTrainConfig, ProgressFn, fit_planar
+
+MODEL_FILE = "model.eqx"
+RUN_FILE = "run.json"
+
+
+def simulate_turning(
+    scenario: str = "turning_vortex",
+    *,
+    seed: int = 0,
+    out: str | os.PathLike[str] | None = None,
+    **settings: Any,
+) -> PlanarDataset:
+    """Simulate a turning body's data set (:func:`fhnn.data.planar.simulate_planar`: ``settings``
+    are its keyword arguments); written to the HDF5 file ``out`` when given."""
+    dataset = simulate_planar(scenario, seed=seed, **settings)
+    if out is not None:
+        write_planar(dataset, out)
+    return dataset
+
+
+def _dataset(data: PlanarDataset | str | os.PathLike[str]) -> PlanarDataset:
+    return data if isinstance(data, PlanarDataset) else read_planar(data)
+
+
+def train_turning(
+    data: PlanarDataset | str | os.PathLike[str],
+    *,
+    model: PlanarModelConfig | None = None,
+    training: PlanarTrainConfig | None = None,
+    out: str | os.PathLike[str] | None = None,
+    progress: ProgressFn | None = None,
+) -> PlanarFit:
+    """Train a :class:`~fhnn.models.planar.PlanarFHNN` (:func:`fhnn.training.planar.fit_planar`).
+
+    Args:
+        data: a data set or its HDF5 file.
+        model, training: the configurations (defaults when ``None``).
+        out: a folder to write ``model.eqx`` (the weights) and ``run.json`` (the configurations,
+            the data-derived arguments, the validation loss, the history and the seconds) into.
+        progress: called as ``progress(phase, step, steps, train_loss)``.
+
+    Raises:
+        DataFormatError: ``data`` is not a readable turning body's data set, or ``out`` holds a
+            model already.
+        ConfigError: a bad setting.
+    """
+    if out is not None and (Path(out) / MODEL_FILE).exists():
+        raise DataFormatError(f"{out} holds a model already; give a new folder")
+    dataset = _dataset(data)
+    model = model or PlanarModelConfig()
+    training = training or PlanarTrainConfig()
+    fit = fit_planar(dataset, model, training, progress=progress)
+    if out is not None:
+        folder = Path(out)
+        folder.mkdir(parents=True, exist_ok=True)
+        with atomic_output(folder / MODEL_FILE) as tmp:
+            eqx.tree_serialise_leaves(tmp, fit.model)
+        run = {
+            "model": model.to_dict(),
+            "training": training.to_dict(),
+            "arguments": planar_arguments(dataset),
+            "data": {"scenario": dataset.scenario, "seed": dataset.seed, "obs_noise": dataset.obs_noise},
+            "val_loss": fit.val_loss,
+            "seconds": fit.seconds,
+            "history": fit.history,
+        }
+        with atomic_output(folder / RUN_FILE) as tmp:
+            tmp.write_text(json.dumps(run, indent=1))
+    return fit
+
+
+def load_turning(folder: str | os.PathLike[str]) -> PlanarFHNN:
+    """The model :func:`train_turning` wrote into ``folder``.
+
+    Raises:
+        DataFormatError: ``folder`` lacks the files, or they do not fit together.
+    """
+    folder = Path(folder)
+    run_path = check_input_file(folder / RUN_FILE, "a turning model's run.json")
+    weights = check_input_file(folder / MODEL_FILE, "a turning model's weights")
+    try:
+        run = json.loads(run_path.read_text())
+        like = build_planar_fhnn(
+            PlanarModelConfig.from_dict(run["model"]), **run["arguments"], key=jax.random.PRNGKey(0)
+        )
+        return eqx.tree_deserialise_leaves(weights, like)
+    except (KeyError, TypeError, ValueError, RuntimeError) as err:
+        raise DataFormatError(f"{folder}: not a turning model ({err})") from None
+
+
+def evaluate_turning(
+    model: PlanarFHNN | str | os.PathLike[str],
+    data: PlanarDataset | str | os.PathLike[str],
+    *,
+    horizon: float = 5.0,
+) -> dict[str, Any]:
+    """Forecast errors at ``horizon`` [s], added masses, damping and flow against the data's truth
+    (:func:`fhnn.evaluation.planar.evaluate_planar`); ``model`` a model or the folder
+    :func:`train_turning` wrote."""
+    learned = model if isinstance(model, PlanarFHNN) else load_turning(model)
+    return evaluate_planar(learned, _dataset(data), horizon=horizon)
+
+
+__all__ = ["evaluate_turning", "load_turning", "simulate_turning", "train_turning"]

@@ -1,0 +1,110 @@
+"""``fhnn turning simulate|train|evaluate``: a body that turns (3-DOF), over :mod:`fhnn.api.planar`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from fhnn.api.planar import evaluate_turning, simulate_turning, train_turning
+from fhnn.cli import render
+from fhnn.cli.options import QuietOption, app
+from fhnn.errors import ConfigError
+from fhnn.physics.planar_scenarios import PLANAR_SCENARIOS
+from fhnn.training.planar import PlanarTrainConfig
+
+turning = typer.Typer(
+    help="Bodies that turn (3-DOF: surge, sway, yaw): simulate, train, evaluate.",
+    no_args_is_help=True,
+    rich_markup_mode=None,
+)
+app.add_typer(turning, name="turning")
+
+
+@turning.command()
+def simulate(
+    scenario: Annotated[str, typer.Argument(help=f"Scenario: {', '.join(PLANAR_SCENARIOS)}.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="HDF5 file to write.")],
+    n_traj: Annotated[int, typer.Option(help="Trajectories over all splits (70/20/10 %).")] = 100,
+    duration: Annotated[float, typer.Option(help="Train/val trajectory length in s.")] = 20.0,
+    test_duration: Annotated[float, typer.Option(help="Test trajectory length in s.")] = 20.0,
+    dt: Annotated[float, typer.Option(help="Sampling interval in s.")] = 0.05,
+    obs_noise: Annotated[float, typer.Option(help="Std of the noise on every stored state entry.")] = 0.0,
+    seed: Annotated[int, typer.Option(help="Seed of every random draw.")] = 0,
+    quiet: QuietOption = False,
+) -> None:
+    """Simulate a turning body's data set (train/val/test splits) and write it as HDF5."""
+    data = simulate_turning(
+        scenario,
+        seed=seed,
+        out=output,
+        n_traj=n_traj,
+        duration=duration,
+        test_duration=test_duration,
+        dt=dt,
+        obs_noise=obs_noise,
+    )
+    if not quiet:
+        sizes = ", ".join(f"{k} {s.states.shape[0]}×{s.states.shape[1]}" for k, s in data.splits.items())
+        render.note(f"wrote {output}: {scenario}, seed {seed}; trajectories × samples: {sizes}")
+
+
+@turning.command()
+def train(
+    data: Annotated[Path, typer.Argument(help="Data set written by `fhnn turning simulate`.")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Run folder to write (new).")],
+    adam_steps: Annotated[int | None, typer.Option(help="Adam steps [default: 4000].")] = None,
+    lbfgs_steps: Annotated[int | None, typer.Option(help="L-BFGS iterations [default: 1000].")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the weights.")] = 0,
+    quiet: QuietOption = False,
+) -> None:
+    """Train the 3-DOF FHNN (flow, added masses, damping) and write model.eqx and run.json."""
+    given = {"adam_steps": adam_steps, "lbfgs_steps": lbfgs_steps, "seed": seed}
+    config = PlanarTrainConfig(**{k: v for k, v in given.items() if v is not None})
+
+    def progress(phase: str, step: int, steps: int, loss: float) -> None:
+        if not quiet and (step % 500 == 0 or step == steps):
+            render.note(f"{phase} {step}/{steps}: training loss {loss:.3e}")
+
+    fit = train_turning(data, training=config, out=output, progress=progress)
+    masses = fit.model.added_mass()
+    render.stdout.print(
+        f"wrote {output}: validation loss {fit.val_loss:.3e} after {fit.seconds:.0f} s; added masses "
+        f"m_11 {float(masses[0]):.4g} kg, m_22 {float(masses[1]):.4g} kg, m_66 {float(masses[2]):.4g} kg·m²",
+        soft_wrap=True,
+        highlight=False,
+    )
+
+
+@turning.command()
+def evaluate(
+    run: Annotated[Path, typer.Argument(help="Run folder written by `fhnn turning train`.")],
+    data: Annotated[Path, typer.Argument(help="Simulated data set (its truth is compared with).")],
+    horizon: Annotated[float, typer.Option(help="Forecast horizon in whole seconds.")] = 5.0,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the whole report as JSON.")] = False,
+) -> None:
+    """Forecast errors, added masses, damping and flow against the simulator's truth."""
+    if horizon <= 0:
+        raise ConfigError(f"--horizon must be positive, got {horizon:g}")
+    report = evaluate_turning(run, data, horizon=horizon)
+    if as_json:
+        render.stdout.print_json(json.dumps(report))
+        return
+    f = report["forecast"]
+    lines = [
+        f"forecast at {horizon:g} s: RMSE(pos) {f['rmse_pos']:.3g} m, "
+        f"RMSE(heading) {f['rmse_heading']:.3g} rad"
+        + (f", {f['diverged']} diverged" if f["diverged"] else ""),
+        "added masses: "
+        + ", ".join(
+            f"{k} {v['learned']:.4g} (true {v['true']:.4g}, {100 * v['rel_error']:.2g} %)"
+            for k, v in report["added_mass"].items()
+        ),
+        "damping, relative L2: "
+        + ", ".join(f"{a} {100 * report['damping'][a]['rel_l2']:.2g} %" for a in ("surge", "sway", "yaw")),
+        f"flow, relative L2: {100 * report['flow']['rel_l2']:.2g} %",
+    ]
+    for line in lines:
+        render.stdout.print(line, soft_wrap=True, highlight=False, markup=False)

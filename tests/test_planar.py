@@ -1,0 +1,258 @@
+"""The 3-DOF equations (docs/spec.md §7) against exact cases: energy, the Munk instability, the
+2-DOF body, a body turning with the water, dissipation."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from fhnn.physics.body import CoefficientLaws, Constant, ReynoldsDrag
+from fhnn.physics.dynamics import EquationsOfMotion
+from fhnn.physics.flows import LambOseenVortex, SolidBodyRotation, StillWater
+from fhnn.physics.integrators import adaptive_solve
+from fhnn.physics.planar import (
+    DiagonalDamping,
+    PlanarEquations,
+    munk_growth_rate,
+    rotation,
+    water_at_body,
+)
+
+DRAG = ReynoldsDrag(c_inf=0.6, c_0=0.4, sigma_ref=0.2)
+NO_DAMPING = DiagonalDamping(
+    linear=(0.0, 0.0, 0.0), areas=(0.0, 0.0), quadratic=Constant(0.0), yaw_quadratic=0.0
+)
+
+
+def body(flow, damping=NO_DAMPING, added=(1.5, 9.0, 0.6), x_g=0.0, m_26=0.0):
+    return PlanarEquations(
+        flow=flow, damping=damping, mass=10.0, inertia=1.0, added_mass=jnp.array(added), x_g=x_g, m_26=m_26
+    )
+
+
+@pytest.mark.parametrize(("x_g", "m_26"), [(0.0, 0.0), (0.2, 0.4)])
+def test_kinetic_energy_is_conserved_in_still_water_without_damping(x_g, m_26) -> None:
+    eom = body(StillWater(), x_g=x_g, m_26=m_26)
+    s0 = jnp.array([0.3, -0.2, 0.4, 0.5, -0.3, 0.8])
+    ts = jnp.linspace(0.0, 20.0, 201)
+    states, ok = adaptive_solve(lambda s, t: eom(s, t, jnp.zeros(3)), s0, ts, rtol=1e-12, atol=1e-12)
+    energy = jax.vmap(eom.kinetic_energy)(states)
+    assert bool(ok)
+    assert float(jnp.max(jnp.abs(energy / energy[0] - 1.0))) < 1e-9
+    # the motion is not trivial: the heading turns and the velocity changes direction
+    assert float(jnp.ptp(states[:, 2])) > 1.0 and float(jnp.ptp(states[:, 4])) > 0.1
+
+
+def test_the_munk_instability_grows_at_its_linearised_rate() -> None:
+    eom = body(StillWater())
+    speed = 0.7
+    rate = munk_growth_rate(10.0, 1.0, (1.5, 9.0, 0.6), speed)
+    straight = jnp.array([0.0, 0.0, 0.0, speed, 0.0, 0.0])
+    jac = jax.jacfwd(lambda s: eom(s, 0.0, jnp.zeros(3)))(straight)
+    eigen = np.linalg.eigvals(np.asarray(jac[4:, 4:]))  # sway and yaw rate
+    assert max(eigen.real) == pytest.approx(rate, rel=1e-12)
+    # and the nonlinear solution: a tiny yaw rate grows by e^{λt} before it saturates
+    s0 = straight.at[5].set(1e-12)  # after 8/λ, 3e-9: still linear; the decaying mode gone
+    ts = jnp.linspace(0.0, 8.0 / rate, 41)
+    states, ok = adaptive_solve(lambda s, t: eom(s, t, jnp.zeros(3)), s0, ts, rtol=1e-12, atol=1e-15)
+    growth = math.log(abs(float(states[-1, 5])) / abs(float(states[-11, 5]))) / float(ts[-1] - ts[-11])
+    assert bool(ok) and growth == pytest.approx(rate, rel=1e-4)
+    with pytest.raises(ValueError, match="no Munk instability"):
+        munk_growth_rate(10.0, 1.0, (9.0, 1.5, 0.6), speed)
+
+
+def test_an_axisymmetric_body_follows_the_2dof_path_whatever_its_heading_does() -> None:
+    """m_11 = m_22, the 2-DOF drag law on both translational axes, x_G = 0: (x, y) is §1's path
+    under the same world-frame forces, while the body turns."""
+    flow = LambOseenVortex(gamma=5.0, core_radius=1.0, modulation=0.3, period=20.0)
+    damping = DiagonalDamping(linear=(3.0, 3.0, 0.4), areas=(0.02, 0.02), quadratic=DRAG, yaw_quadratic=0.2)
+    planar = body(flow, damping, added=(12.0, 12.0, 0.6))
+    point = EquationsOfMotion(
+        flow=flow,
+        coefficients=CoefficientLaws(Constant(12.0), Constant(12.0), DRAG, Constant(3.0)),
+        mass=10.0,
+        rho=1000.0,
+        area=0.02,
+    )
+
+    def world_force(t):
+        return jnp.stack([0.8 * jnp.sin(0.9 * t), 0.5 * jnp.cos(1.7 * t + 0.3)])
+
+    def planar_field(s, t):
+        tau_xy = rotation(s[2]).T @ world_force(t)
+        return planar(s, t, jnp.concatenate([tau_xy, jnp.array([0.3 * jnp.sin(2.1 * t)])]))
+
+    xy0, v0, psi0 = jnp.array([1.2, -0.4]), jnp.array([0.1, 0.25]), 0.7
+    s0 = jnp.concatenate([xy0, jnp.array([psi0]), rotation(psi0).T @ v0, jnp.array([0.5])])
+    ts = jnp.linspace(0.0, 15.0, 301)
+    turning, ok1 = adaptive_solve(planar_field, s0, ts, rtol=1e-12, atol=1e-12)
+    path, ok2 = adaptive_solve(
+        lambda s, t: point(s, t, world_force(t)), jnp.concatenate([xy0, v0]), ts, rtol=1e-12, atol=1e-12
+    )
+    assert bool(ok1) and bool(ok2)
+    assert float(jnp.ptp(turning[:, 2])) > 0.5  # it turns
+    assert float(jnp.max(jnp.abs(turning[:, :2] - path[:, :2]))) < 1e-8
+    world_velocity = jax.vmap(lambda s: rotation(s[2]) @ s[3:5])(turning)
+    assert float(jnp.max(jnp.abs(world_velocity - path[:, 2:]))) < 1e-8
+
+
+def test_a_body_turning_with_the_water_feels_no_damping() -> None:
+    """At the centre of a solid-body rotation Ω the water turns at ω/2 = Ω: a body spinning at Ω
+    keeps spinning, however strong its yaw damping."""
+    omega = 0.8
+    damping = DiagonalDamping(linear=(3.0, 3.0, 2.0), areas=(0.02, 0.05), quadratic=DRAG, yaw_quadratic=1.0)
+    eom = body(SolidBodyRotation(omega=omega), damping)
+    assert np.allclose(water_at_body(eom.flow, jnp.array([0.0, 0.0, 0.3]), 0.0), [0.0, 0.0, omega])
+    rates = eom(jnp.array([0.0, 0.0, 0.3, 0.0, 0.0, omega]), 0.0, jnp.zeros(3))
+    assert np.allclose(rates, [0.0, 0.0, omega, 0.0, 0.0, 0.0], atol=1e-15)
+    braked = eom(jnp.array([0.0, 0.0, 0.3, 0.0, 0.0, 2 * omega]), 0.0, jnp.zeros(3))
+    assert float(braked[5]) < 0.0
+
+
+def test_the_simulator_damping_dissipates(rng) -> None:
+    damping = DiagonalDamping(linear=(3.0, 6.0, 0.5), areas=(0.01, 0.05), quadratic=DRAG, yaw_quadratic=0.3)
+    nus = jnp.asarray(rng.normal(0.0, 1.0, (500, 3)))
+    power = jax.vmap(lambda nu: nu @ damping(nu))(nus)
+    assert float(jnp.min(power)) > 0.0
+
+
+# --- the learned model, the data set -------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def small_planar():
+    from fhnn.data.planar import simulate_planar
+
+    return simulate_planar("turning_time_varying_vortex", n_traj=6, duration=2.0, test_duration=3.0, seed=5)
+
+
+def _model(dataset, seed=0):
+    from fhnn.models.planar import PlanarModelConfig, build_planar_fhnn, planar_arguments
+
+    return build_planar_fhnn(
+        PlanarModelConfig(width=8, depth=2, time_modes=2),
+        **planar_arguments(dataset),
+        key=jax.random.PRNGKey(seed),
+    )
+
+
+def _perturbed(model, seed):
+    import equinox as eqx
+
+    leaves, treedef = jax.tree_util.tree_flatten(eqx.filter(model, eqx.is_inexact_array))
+    keys = jax.random.split(jax.random.PRNGKey(seed), len(leaves))
+    noisy = [x + 0.3 * jax.random.normal(k, x.shape) for x, k in zip(leaves, keys, strict=True)]
+    return eqx.combine(jax.tree_util.tree_unflatten(treedef, noisy), model)
+
+
+def test_the_learned_field_matches_central_differences(small_planar) -> None:
+    model = _perturbed(_model(small_planar), 1)
+    s = jnp.array([0.9, -0.6, 0.4, 0.3, -0.1, 0.2])
+    tau = jnp.array([0.2, -0.1, 0.05])
+    jac = np.asarray(jax.jacfwd(lambda x: model(x, 1.3, tau))(s))
+    h = 1e-6
+    for j in range(6):
+        e = jnp.zeros(6).at[j].set(h)
+        fd = (np.asarray(model(s + e, 1.3, tau)) - np.asarray(model(s - e, 1.3, tau))) / (2 * h)
+        np.testing.assert_allclose(jac[:, j], fd, rtol=1e-6, atol=1e-8)
+    # and in the force: the field is affine in τ with slope (M_RB + M_A)⁻¹
+    d_tau = np.asarray(jax.jacfwd(lambda f: model(s, 1.3, f))(tau))[3:]
+    np.testing.assert_allclose(d_tau, np.linalg.inv(np.asarray(model.equations().mass_matrix())), rtol=1e-12)
+
+
+def test_the_learned_damping_dissipates_for_any_weights(small_planar, rng) -> None:
+    nus = jnp.asarray(rng.normal(0.0, 1.0, (400, 3)))
+    for seed in range(5):
+        model = _perturbed(_model(small_planar, seed), seed + 10)
+        power = jax.vmap(lambda nu: nu @ model.damping(nu))(nus)
+        assert float(jnp.min(power)) >= 0.0
+        assert float(jnp.min(model.added_mass())) > 0.0
+
+
+def test_a_planar_data_set_survives_its_file_and_a_wrong_file_is_refused(small_planar, tmp_path) -> None:
+    from fhnn.data.planar import read_planar, write_planar
+    from fhnn.errors import DataFormatError
+
+    path = write_planar(small_planar, tmp_path / "turning.h5")
+    back = read_planar(path)
+    assert back.params == small_planar.params and back.mass == small_planar.mass
+    for name, split in small_planar.splits.items():
+        for field in ("t", "states", "states_clean", "forces", "thrust"):
+            np.testing.assert_array_equal(getattr(back.splits[name], field), getattr(split, field))
+    # the recorded forces are the thrusters' sinusoids at the samples
+    from fhnn.physics.actuation import actuation_force
+
+    train = small_planar.splits["train"]
+    assert np.allclose(
+        train.forces[0, 7], actuation_force(jnp.asarray(train.thrust[0]), train.t[7]), atol=1e-15
+    )
+    import h5py
+
+    with h5py.File(tmp_path / "other.h5", "w") as f:
+        f.attrs["kind"] = "point"
+    with pytest.raises(DataFormatError, match="not a turning body's data set"):
+        read_planar(tmp_path / "other.h5")
+    with pytest.raises(DataFormatError, match="no such file"):
+        read_planar(tmp_path / "missing.h5")
+
+
+def test_bad_planar_settings_are_refused_by_name() -> None:
+    from fhnn.data.planar import simulate_planar
+    from fhnn.errors import ConfigError
+    from fhnn.physics.planar_scenarios import get_planar_scenario
+
+    with pytest.raises(ConfigError, match="unknown turning scenario 'vortex'"):
+        get_planar_scenario("vortex")
+    with pytest.raises(ConfigError, match="added_mass must be 3 finite numbers"):
+        get_planar_scenario("turning_vortex", added_mass=(1.0, -2.0, 0.5))
+    with pytest.raises(ConfigError, match="unknown parameter"):
+        get_planar_scenario("turning_vortex", gama=4.0)
+    with pytest.raises(ConfigError, match="n_traj"):
+        simulate_planar(n_traj=2)
+
+
+def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(tmp_path, capsys) -> None:
+    """``fhnn turning``: a short run end to end, the report's numbers as the library computes
+    them, and one-line errors with status 2 (no file left behind)."""
+    import json
+
+    from fhnn.api.planar import evaluate_turning, load_turning
+    from fhnn.cli.app import main
+
+    def run(argv):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        out = capsys.readouterr()
+        return info.value.code, out.out, out.err
+
+    data, folder = tmp_path / "t.h5", tmp_path / "run"
+    sim = ["turning", "simulate", "turning_vortex", "-o", str(data), "--n-traj", "6", "--duration", "1"]
+    assert run([*sim, "--test-duration", "2", "--seed", "4", "-q"])[0] == 0
+    code, out, _ = run(
+        ["turning", "train", str(data), "-o", str(folder), "--adam-steps", "10", "--lbfgs-steps", "0", "-q"]
+    )
+    assert code == 0 and "validation loss" in out and (folder / "model.eqx").is_file()
+    code, out, _ = run(["turning", "evaluate", str(folder), str(data), "--horizon", "2", "--json"])
+    assert code == 0
+    report = json.loads(out)
+    again = evaluate_turning(load_turning(folder), data, horizon=2.0)
+    assert report["forecast"]["rmse_pos"] == pytest.approx(again["forecast"]["rmse_pos"], rel=1e-12)
+    assert report["added_mass"]["m_22"]["true"] == 9.0
+    bad = [
+        (["turning", "evaluate", str(folder), str(data), "--horizon", "3"], "horizon must be a whole number"),
+        (
+            ["turning", "evaluate", str(folder), str(data), "--horizon", "1.5"],
+            "horizon must be a whole number",
+        ),
+        (["turning", "train", str(data), "-o", str(folder)], "holds a model already"),
+        (["turning", "train", str(tmp_path / "none.h5"), "-o", str(tmp_path / "r2")], "no such file"),
+        (["turning", "evaluate", str(tmp_path), str(data)], "no such file"),
+        (["turning", "simulate", "turning_vortex", "-o", str(tmp_path / "x.h5"), "--dt", "0"], "dt"),
+    ]
+    for argv, message in bad:
+        code, out, err = run(argv)
+        assert code == 2 and out == "", argv
+        assert err.startswith("error: ") and message in err and err.count("\n") == 1, err
+    assert not (tmp_path / "x.h5").exists() and not (tmp_path / "r2").exists()
