@@ -361,6 +361,54 @@ def render_calibration(record: dict[str, Any]) -> str:
     return _table(header, rows) + "\n\n" + caption
 
 
+def render_turning(record: dict[str, Any]) -> str:
+    """The 3-DOF model on its own scenarios against issue 71's targets (× the target where missed)."""
+    runs, targets = record["runs"], record["targets"]
+
+    def cell(value: float, target: float) -> str:
+        return _g(value) + ("" if value <= target else f" ({_ratio(value / target)}×)")
+
+    def pct_cell(value: float, target: float) -> str:
+        return _pct(value) + ("" if value <= target else f" ({_ratio(value / target)}×)")
+
+    measures = [
+        ("RMSE(pos) at 5 s [m]", lambda r: cell(r["forecast"]["rmse_pos"], targets["rmse_pos"]), "1e-4"),
+        (
+            "RMSE(heading) at 5 s [rad]",
+            lambda r: cell(r["forecast"]["rmse_heading"], targets["rmse_heading"]),
+            "1e-3",
+        ),
+        *[
+            (name, lambda r, n=name: pct_cell(r["added_mass"][n]["rel_error"], targets["added_mass"]), "2 %")
+            for name in ("m_11", "m_22", "m_66")
+        ],
+        *[
+            (
+                f"damping, {axis} (L2)",
+                lambda r, a=axis: pct_cell(r["damping"][a]["rel_l2"], targets["damping"]),
+                "5 %",
+            )
+            for axis in ("surge", "sway", "yaw")
+        ],
+        ("flow (L2)", lambda r: pct_cell(r["flow"]["rel_l2"], targets["flow"]), "1 %"),
+        ("training [s]", lambda r: f"{r['train_seconds']:.0f}", "—"),
+    ]
+    header = ["measure", *[f"`{n}`" for n in runs], "target"]
+    rows = [[label, *[fn(r) for r in runs.values()], target] for label, fn, target in measures]
+    return _table(header, rows)
+
+
+def render_turning_choice(record: dict[str, Any]) -> str:
+    """A choice of the 3-DOF model's settings: each run's validation loss (what chose) and more."""
+    header = ["scenario", "setting", "validation loss", "last training loss", "training [s]"]
+    rows = [
+        [f"`{r['scenario']}`", f"`{r['setting']}`", _g(r["val_loss"]), _g(r["last_train_loss"])]
+        + [f"{r['seconds']:.0f}"]
+        for r in record["runs"]
+    ]
+    return _table(header, rows, right=2)
+
+
 def render_printed(record: dict[str, Any]) -> str:
     """What the script printed."""
     return "```text\n" + record["output"].rstrip() + "\n```"
@@ -385,7 +433,16 @@ def render_numbers(record: dict[str, Any]) -> str:
 
 def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results") -> str:
     """The Markdown of result file ``name`` (without ``.json``) in ``folder``."""
-    kinds = ("own_data", "fhnn_targets", "reproduction", "baselines", "track_fit_solvers", "calibration")
+    kinds = (
+        "own_data",
+        "fhnn_targets",
+        "reproduction",
+        "baselines",
+        "track_fit_solvers",
+        "calibration",
+        "turning_choice",
+        "turning",
+    )
     base = next((b for b in kinds if name.startswith(b)), name)
     if f"render_{base}" in globals():
         body = globals()[f"render_{base}"](record)

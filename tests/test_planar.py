@@ -234,7 +234,19 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
         ["turning", "train", str(data), "-o", str(folder), "--adam-steps", "10", "--lbfgs-steps", "0", "-q"]
     )
     assert code == 0 and "validation loss" in out and (folder / "model.eqx").is_file()
-    code, out, _ = run(["turning", "evaluate", str(folder), str(data), "--horizon", "2", "--json"])
+    code, out, _ = run(
+        [
+            "turning",
+            "evaluate",
+            str(folder),
+            str(data),
+            "--horizon",
+            "2",
+            "--json",
+            "--figure",
+            str(tmp_path / "f.png"),
+        ]
+    )
     assert code == 0
     report = json.loads(out)
     again = evaluate_turning(load_turning(folder), data, horizon=2.0)

@@ -25,6 +25,7 @@ import jax
 from fhnn.data.planar import PlanarDataset, read_planar, simulate_planar, write_planar
 from fhnn.errors import DataFormatError
 from fhnn.evaluation.planar import evaluate_planar
+from fhnn.experiments.planar_figures import forecast_figure
 from fhnn.files import atomic_output, check_input_file
 from fhnn.models.planar import PlanarFHNN, PlanarModelConfig, build_planar_fhnn, planar_arguments
 from fhnn.training.planar import PlanarFit, PlanarTrainConfig, ProgressFn, fit_planar
@@ -131,4 +132,18 @@ def evaluate_turning(
     return evaluate_planar(learned, _dataset(data), horizon=horizon)
 
 
-__all__ = ["evaluate_turning", "load_turning", "simulate_turning", "train_turning"]
+def figure_turning(
+    model: PlanarFHNN | str | os.PathLike[str],
+    data: PlanarDataset | str | os.PathLike[str],
+    path: str | os.PathLike[str],
+    *,
+    horizon: float = 5.0,
+) -> Path:
+    """Write a PNG of the first test trajectories, true and forecast to ``horizon`` [s], with the
+    body's outline every second (:func:`fhnn.experiments.planar_figures.forecast_figure`);
+    returns its path."""
+    learned = model if isinstance(model, PlanarFHNN) else load_turning(model)
+    return forecast_figure(learned, _dataset(data), path, horizon=horizon)
+
+
+__all__ = ["evaluate_turning", "figure_turning", "load_turning", "simulate_turning", "train_turning"]

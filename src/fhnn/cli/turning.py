@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from fhnn.api.planar import evaluate_turning, simulate_turning, train_turning
+from fhnn.api.planar import evaluate_turning, figure_turning, simulate_turning, train_turning
 from fhnn.cli import render
 from fhnn.cli.options import QuietOption, app
 from fhnn.errors import ConfigError
@@ -84,11 +84,17 @@ def evaluate(
     data: Annotated[Path, typer.Argument(help="Simulated data set (its truth is compared with).")],
     horizon: Annotated[float, typer.Option(help="Forecast horizon in whole seconds.")] = 5.0,
     as_json: Annotated[bool, typer.Option("--json", help="Print the whole report as JSON.")] = False,
+    figure: Annotated[
+        Path | None,
+        typer.Option(help="Also draw test forecasts, with the body's outline each second, to this PNG."),
+    ] = None,
 ) -> None:
     """Forecast errors, added masses, damping and flow against the simulator's truth."""
     if horizon <= 0:
         raise ConfigError(f"--horizon must be positive, got {horizon:g}")
     report = evaluate_turning(run, data, horizon=horizon)
+    if figure is not None:
+        figure_turning(run, data, figure, horizon=horizon)
     if as_json:
         render.stdout.print_json(json.dumps(report))
         return

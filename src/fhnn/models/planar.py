@@ -36,9 +36,9 @@ class PlanarModelConfig(Config):
         time_modes: harmonics K of a time-dependent flow's basis in time (as
             :attr:`fhnn.models.fhnn.FHNNConfig.time_modes`).
         init_added_mass: the added masses' start, as fractions of ``(m, m, I_z)``.
-        damping_inputs: what the damping net sees: ``"velocity"`` (``ν_r / ν_s``) or
-            ``"speeds"`` (``|ν_r| / ν_s`` per entry, smoothed within 1e-3 ν_s of zero: a damping
-            even in each of surge, sway and yaw, as a hull symmetric fore–aft and port–starboard).
+        damping_inputs: what the damping net sees: ``"speeds"`` (``|ν_r| / ν_s`` per entry,
+            smoothed within 1e-3 ν_s of zero: a damping even in each of surge, sway and yaw, as a
+            hull symmetric fore–aft and port–starboard) or ``"velocity"`` (``ν_r / ν_s``).
     """
 
     config_name = "planar model"
@@ -47,7 +47,7 @@ class PlanarModelConfig(Config):
     depth: int = 3
     time_modes: int = 8
     init_added_mass: float = 0.5
-    damping_inputs: Literal["velocity", "speeds"] = "velocity"
+    damping_inputs: Literal["velocity", "speeds"] = "speeds"
 
     def validate(self) -> None:
         check_positive(self, "width", "depth", "init_added_mass")
