@@ -401,11 +401,10 @@ def render_turning(record: dict[str, Any]) -> str:
 def render_turning_choice(record: dict[str, Any]) -> str:
     """A choice of the 3-DOF model's settings: each run's validation loss (what chose) and more."""
     header = ["scenario", "setting", "validation loss", "last training loss", "training [s]"]
-    rows = [
-        [f"`{r['scenario']}`", f"`{r['setting']}`", _g(r["val_loss"]), _g(r["last_train_loss"])]
-        + [f"{r['seconds']:.0f}"]
-        for r in record["runs"]
-    ]
+    rows = []
+    for r in record["runs"]:
+        losses = [_g(r["val_loss"]), _g(r["last_train_loss"])]
+        rows.append([f"`{r['scenario']}`", f"`{r['setting']}`", *losses, f"{r['seconds']:.0f}"])
     return _table(header, rows, right=2)
 
 
