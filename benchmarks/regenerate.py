@@ -49,6 +49,11 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "laplace_exact.py": ["laplace_exact"],
         "calibration.py --role confirming --method laplace": ["calibration_laplace_confirming"],
     },
+    "Does it learn a body that turns?": {
+        "turning.py --data-seed 3": ["turning_seed3"],
+        "turning.py --data-seed 4": ["turning_seed4"],
+        "station_keeping.py --data-seed 3": ["station_keeping_seed3"],
+    },
     "How fast?": {
         "quick_reproduction.py": ["quick_reproduction"],
         "own_data.py --speed-only": ["import_speed"],

@@ -408,6 +408,25 @@ def render_turning_choice(record: dict[str, Any]) -> str:
     return _table(header, rows, right=2)
 
 
+def render_station_keeping(record: dict[str, Any]) -> str:
+    """Station keeping under MPC: RMS distance from the station with the learned and true models."""
+    ratio = record["ratio"]
+    target = record["target_ratio"]
+    verdict = "met" if ratio <= target else f"missed by {_ratio(ratio / target)}×"
+    rows = [
+        ["drifting, no thrust", _g(record["drift"])],
+        ["MPC with the true equations", _g(record["true_model"])],
+        ["MPC with the learned model", _g(record["learned_model"])],
+        ["learned / true", f"{ratio:.3f} (target ≤ {record['target_ratio']:g}: {verdict})"],
+    ]
+    caption = (
+        f"*RMS distance [m] from the station over the last {2 * record['seconds'] / 3:g} s of "
+        f"{record['seconds']:g} s; {record['iterations']} L-BFGS iterations per decision; the model "
+        f"trained in {record['train_seconds']:.0f} s.*"
+    )
+    return _table(["controller", "RMS distance [m]"], rows) + "\n\n" + caption
+
+
 def render_printed(record: dict[str, Any]) -> str:
     """What the script printed."""
     return "```text\n" + record["output"].rstrip() + "\n```"
@@ -441,6 +460,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
         "calibration",
         "turning_choice",
         "turning",
+        "station_keeping",
     )
     base = next((b for b in kinds if name.startswith(b)), name)
     if f"render_{base}" in globals():

@@ -37,3 +37,24 @@ def test_own_data_example_runs_from_table_to_forecast_band(tmp_path: Path) -> No
     assert len(x) > 0 and np.all(lo <= x + 1e-12) and np.all(x <= hi + 1e-12)
     png = out / "forecast.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_station_keeping_example_holds_the_body_where_it_would_drift(tmp_path: Path) -> None:
+    """examples/station_keeping.py --fast: model-predictive control with the true 3-DOF model
+    keeps the body within a hundredth of the distance it drifts without thrust."""
+    import json
+
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "station_keeping.py"), "--fast", "--json"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    result = json.loads(run.stdout.strip().splitlines()[-1])
+    assert result["drift"] > 0.1  # the current carries an uncontrolled body away
+    assert result["true_model"] < 0.01 * result["drift"]
+    refused = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "station_keeping.py")], capture_output=True, text=True
+    )
+    assert refused.returncode == 2 and "give --run RUN" in refused.stderr
