@@ -1,4 +1,5 @@
-"""Bodies that turn (3-DOF, docs/spec.md §7), from Python: simulate, train, save, load, evaluate.
+"""Bodies that turn (3-DOF, docs/spec.md §7), from Python: simulate or import, train, save, load,
+evaluate.
 
 ::
 
@@ -8,14 +9,16 @@
     fit = train_turning(data, out="runs/turning")      # model.eqx and run.json in runs/turning
     report = evaluate_turning(fit.model, data)          # forecasts, added masses, damping, flow
 
-The command line and the point body's functions (:func:`fhnn.train` and the rest) do not take a
-turning body's data yet.
+A table with a ``heading`` column becomes such a data set with :func:`import_turning` (``fhnn
+import`` does the same). The point body's functions (:func:`fhnn.train` and the rest) do not take
+a turning body's data.
 """
 
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +26,8 @@ import equinox as eqx
 import jax
 
 from fhnn.data.planar import PlanarDataset, read_planar, simulate_planar, write_planar
+from fhnn.data.planar_table import PlanarImportSettings, planar_table_to_dataset, read_planar_table
+from fhnn.data.table import parse_columns
 from fhnn.errors import DataFormatError
 from fhnn.evaluation.planar import evaluate_planar
 from fhnn.experiments.planar_figures import forecast_figure
@@ -46,6 +51,55 @@ def simulate_turning(
     dataset = simulate_planar(scenario, seed=seed, **settings)
     if out is not None:
         write_planar(dataset, out)
+    return dataset
+
+
+def import_turning(
+    table: Any,
+    output: str | os.PathLike[str] | None = None,
+    *,
+    mass: float,
+    inertia: float,
+    x_g: float = 0.0,
+    split: tuple[float, float, float] = (0.7, 0.2, 0.1),
+    seed: int = 0,
+    time_dependent: bool = False,
+    smoother: str = "auto",
+    columns: Mapping[str, str] | str | None = None,
+    time_unit: str = "s",
+) -> PlanarDataset:
+    """A turning body's data set from a table (:mod:`fhnn.data.planar_table`), as ``fhnn import``
+    makes it from a table with a ``heading`` column.
+
+    Args:
+        table: a .csv or .parquet path, or a ``pandas.DataFrame``, with columns ``traj_id, t, x,
+            y, heading[, Fu, Fv[, Mz] | Fx, Fy]`` [–, s, m, m, rad, N, N, N·m | N, N].
+        output: also write the data set here (HDF5).
+        mass, inertia, x_g: the body's mass [kg], yaw moment of inertia about the tracked point
+            [kg·m²] and centre of gravity ahead of it [m].
+        split, seed: fractions of trajectories for train/val/test and the permutation's seed.
+        time_dependent, smoother: let the flow change in time; the pose smoother (``"spline"``,
+            ``"kalman"``, ``"auto"``).
+        columns: the table's names of our columns where they differ (``"t=time,heading=yaw"``).
+        time_unit: the unit of numeric times (``"s"``, ``"ms"``, ``"us"``, ``"min"``, ``"h"``).
+
+    Raises:
+        ConfigError: a bad setting.
+        DataFormatError: a table that is missing, unreadable or inconsistent.
+    """
+    settings = PlanarImportSettings(
+        mass=mass,
+        inertia=inertia,
+        x_g=x_g,
+        split=tuple(float(f) for f in split),
+        seed=seed,
+        time_dependent=time_dependent,
+        smoother=smoother,
+    )
+    read = read_planar_table(table, columns=parse_columns(columns), time_unit=time_unit)
+    dataset = planar_table_to_dataset(read, settings)
+    if output is not None:
+        write_planar(dataset, output)
     return dataset
 
 
@@ -146,4 +200,11 @@ def figure_turning(
     return forecast_figure(learned, _dataset(data), path, horizon=horizon)
 
 
-__all__ = ["evaluate_turning", "figure_turning", "load_turning", "simulate_turning", "train_turning"]
+__all__ = [
+    "evaluate_turning",
+    "figure_turning",
+    "import_turning",
+    "load_turning",
+    "simulate_turning",
+    "train_turning",
+]

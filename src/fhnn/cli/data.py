@@ -12,10 +12,16 @@ from rich.table import Table
 from fhnn.api.data import import_table as import_data
 from fhnn.api.data import info as data_info
 from fhnn.api.data import simulate as simulate_data
+from fhnn.api.planar import import_turning
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, ForcingHoldOption, TimeUnitOption, app
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
+from fhnn.data.conversion import parse_split
 from fhnn.data.derivatives import AUTO_SPLINE_ROWS
+from fhnn.data.planar import PlanarDataset
+from fhnn.data.planar_table import has_heading
+from fhnn.data.table import parse_columns
+from fhnn.errors import ConfigError
 from fhnn.physics.scenarios import SCENARIOS, UNITS
 from fhnn.training.settings import parse_params
 
@@ -77,12 +83,23 @@ def import_table(
         Path,
         typer.Argument(
             help="Table of samples (.csv or .parquet): traj_id, t, x, y[, vx, vy][, Fx, Fy] in SI "
-            "units; t in seconds or as ISO-8601 date-times; a CSV separated by commas, semicolons or tabs."
+            "units; t in seconds or as ISO-8601 date-times; a CSV separated by commas, semicolons or tabs. "
+            "With a heading column (rad, counter-clockwise from x): a body that turns, with columns "
+            "traj_id, t, x, y, heading[, Fu, Fv[, Mz] (body frame) | Fx, Fy (world frame)]."
         ),
     ],
     output: Annotated[Path, typer.Option("--output", "-o", help="HDF5 data set to write.")],
     mass: Annotated[float, typer.Option("--mass", help="The body's dry mass M in kg.")],
-    area: Annotated[float, typer.Option("--area", help="The body's reference area A in m².")],
+    area: Annotated[
+        float | None, typer.Option("--area", help="The body's reference area A in m² (a point body).")
+    ] = None,
+    inertia: Annotated[
+        float | None,
+        typer.Option("--inertia", help="Yaw moment of inertia about the tracked point in kg·m² (heading)."),
+    ] = None,
+    x_g: Annotated[
+        float, typer.Option("--x-g", help="Centre of gravity ahead of the tracked point in m (heading).")
+    ] = 0.0,
     rho: Annotated[float, typer.Option("--rho", help="Fluid density in kg/m³.")] = 1000.0,
     volume: Annotated[
         float | None, typer.Option("--volume", help="Displaced volume V in m³ [default: M / rho]")
@@ -143,7 +160,33 @@ def import_table(
     unequal lengths; rows with missing values are dropped and counted; a trajectory with a long gap
     (--max-gap) becomes pieces; glitches (--outliers) are dropped and counted; velocities the table
     lacks are estimated from the positions (a smoother held to the noise level they show).
-    Trajectories are split into train/val/test by a seeded permutation."""
+    Trajectories are split into train/val/test by a seeded permutation. A table with a heading
+    column makes a turning body's data set (--mass, --inertia; train it with `fhnn turning train`)."""
+    if has_heading(table, parse_columns(columns)):
+        if area is not None or forcing is not None:
+            raise ConfigError("--area and --forcing apply to a table without a heading column (a point body)")
+        if inertia is None:
+            raise ConfigError("--inertia is needed for a table with a heading column (a body that turns)")
+        data = import_turning(
+            table,
+            output,
+            mass=mass,
+            inertia=inertia,
+            x_g=x_g,
+            split=parse_split(split),
+            seed=seed,
+            time_dependent=time_dependent,
+            smoother=smoother,
+            columns=columns,
+            time_unit=time_unit,
+        )
+        if not quiet:
+            _turning_summary(data, output)
+        return
+    if area is None:
+        raise ConfigError("--area is needed for a table without a heading column (a point body)")
+    if inertia is not None:
+        raise ConfigError("--inertia applies to a table with a heading column; this one has none")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         dataset = import_data(
@@ -168,6 +211,17 @@ def import_table(
         render.note(f"warning: {warning.message}")
     if not quiet:
         render.summary(data_info(dataset), str(output))
+
+
+def _turning_summary(data: PlanarDataset, output: Path) -> None:
+    """One line on an imported turning body's data set."""
+    sizes = ", ".join(f"{k} {s.states.shape[0]}" for k, s in data.splits.items())
+    noise = data.params["noise"]
+    render.note(
+        f"wrote {output}: a turning body's data set; trajectories {sizes}; {data.params['rows']} rows, "
+        f"{data.params['dropped']} dropped; noise: position {noise['position']:.3g} m, heading "
+        f"{noise['heading']:.3g} rad; smoother {data.params['smoother']}"
+    )
 
 
 @app.command()

@@ -12,6 +12,7 @@ from fhnn.api.planar import evaluate_turning, figure_turning, simulate_turning, 
 from fhnn.cli import render
 from fhnn.cli.options import QuietOption, app
 from fhnn.errors import ConfigError
+from fhnn.models.planar import PlanarModelConfig
 from fhnn.physics.planar_scenarios import PLANAR_SCENARIOS
 from fhnn.training.planar import PlanarTrainConfig
 
@@ -53,22 +54,26 @@ def simulate(
 
 @turning.command()
 def train(
-    data: Annotated[Path, typer.Argument(help="Data set written by `fhnn turning simulate`.")],
+    data: Annotated[Path, typer.Argument(help="Data set from `fhnn turning simulate` or `fhnn import`.")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Run folder to write (new).")],
     adam_steps: Annotated[int | None, typer.Option(help="Adam steps [default: 4000].")] = None,
     lbfgs_steps: Annotated[int | None, typer.Option(help="L-BFGS iterations [default: 1000].")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the weights.")] = 0,
+    damping: Annotated[
+        str, typer.Option(help="Damping: diagonal (one per axis) or full (axes coupled, still dissipative).")
+    ] = "diagonal",
     quiet: QuietOption = False,
 ) -> None:
     """Train the 3-DOF FHNN (flow, added masses, damping) and write model.eqx and run.json."""
     given = {"adam_steps": adam_steps, "lbfgs_steps": lbfgs_steps, "seed": seed}
     config = PlanarTrainConfig(**{k: v for k, v in given.items() if v is not None})
+    model = PlanarModelConfig(damping=damping)
 
     def progress(phase: str, step: int, steps: int, loss: float) -> None:
         if not quiet and (step % 500 == 0 or step == steps):
             render.note(f"{phase} {step}/{steps}: training loss {loss:.3e}")
 
-    fit = train_turning(data, training=config, out=output, progress=progress)
+    fit = train_turning(data, model=model, training=config, out=output, progress=progress)
     masses = fit.model.added_mass()
     render.stdout.print(
         f"wrote {output}: validation loss {fit.val_loss:.3e} after {fit.seconds:.0f} s; added masses "
@@ -81,7 +86,10 @@ def train(
 @turning.command()
 def evaluate(
     run: Annotated[Path, typer.Argument(help="Run folder written by `fhnn turning train`.")],
-    data: Annotated[Path, typer.Argument(help="Simulated data set (its truth is compared with).")],
+    data: Annotated[
+        Path,
+        typer.Argument(help="Data set: simulated (scored against its truth) or imported (its observations)."),
+    ],
     horizon: Annotated[float, typer.Option(help="Forecast horizon in whole seconds.")] = 5.0,
     as_json: Annotated[bool, typer.Option("--json", help="Print the whole report as JSON.")] = False,
     figure: Annotated[
@@ -89,7 +97,7 @@ def evaluate(
         typer.Option(help="Also draw test forecasts, with the body's outline each second, to this PNG."),
     ] = None,
 ) -> None:
-    """Forecast errors, added masses, damping and flow against the simulator's truth."""
+    """Forecast errors and added masses; for a simulation also damping and flow against its truth."""
     if horizon <= 0:
         raise ConfigError(f"--horizon must be positive, got {horizon:g}")
     report = evaluate_turning(run, data, horizon=horizon)
@@ -105,12 +113,17 @@ def evaluate(
         + (f", {f['diverged']} diverged" if f["diverged"] else ""),
         "added masses: "
         + ", ".join(
-            f"{k} {v['learned']:.4g} (true {v['true']:.4g}, {100 * v['rel_error']:.2g} %)"
+            f"{k} {v['learned']:.4g}"
+            + (f" (true {v['true']:.4g}, {100 * v['rel_error']:.2g} %)" if "true" in v else "")
             for k, v in report["added_mass"].items()
         ),
-        "damping, relative L2: "
-        + ", ".join(f"{a} {100 * report['damping'][a]['rel_l2']:.2g} %" for a in ("surge", "sway", "yaw")),
-        f"flow, relative L2: {100 * report['flow']['rel_l2']:.2g} %",
     ]
+    if "damping" in report:
+        axes = ("surge", "sway", "yaw")
+        lines += [
+            "damping, relative L2: "
+            + ", ".join(f"{a} {100 * report['damping'][a]['rel_l2']:.2g} %" for a in axes),
+            f"flow, relative L2: {100 * report['flow']['rel_l2']:.2g} %",
+        ]
     for line in lines:
         render.stdout.print(line, soft_wrap=True, highlight=False, markup=False)

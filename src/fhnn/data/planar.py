@@ -1,12 +1,19 @@
 """Data sets of a body that turns: simulated trajectories of a
 :class:`~fhnn.physics.planar_scenarios.PlanarScenario`, and their HDF5 files.
 
-A :class:`PlanarDataset` holds three splits (train, val, test), each with sample times ``t`` (T,)
-[s], states ``(N, T, 6)`` = ``(x, y, ψ, u, v, r)`` as observed (with noise, if any) and without
-noise, the known body-frame forces ``(N, T, 3)`` = ``(X, Y, N)`` [N, N, N·m] at the samples and the
-thrusters' sinusoid parameters ``(N, 3, 3, 3)`` that give them between samples. The body's mass,
-yaw inertia and centre of gravity are known constants of the data set; the scenario's parameters
-(its truth) are kept beside them.
+A :class:`PlanarDataset` holds three splits (train, val, test), each with every trajectory's
+sample times ``t`` ``(N, T)`` [s], states ``(N, T, 6)`` = ``(x, y, ψ, u, v, r)`` as trained on and
+as scored against, the known body-frame forces ``(N, T, 3)`` = ``(X, Y, N)`` [N, N, N·m] at the
+samples and the thrusters' sinusoid parameters ``(N, 3, 3, 3)``. Between samples the force is the
+sinusoids plus the linear interpolant of what they leave at the samples
+(:func:`~fhnn.physics.planar.body_force`): exactly the thrusters for a simulation, exactly the
+linear interpolant of the table for an import (whose sinusoids are zero). The body's mass, yaw
+inertia and centre of gravity are known constants of the data set; a simulation's scenario
+parameters (its truth) are kept beside them.
+
+Trajectories of a split may differ in length (imports): ``lengths`` ``(N,)`` counts each one's
+samples, and past them times go on in steps of :data:`~fhnn.data.table.PAD_STEP` with the last
+state and force repeated.
 """
 
 from __future__ import annotations
@@ -28,7 +35,7 @@ from fhnn.errors import DataFormatError, SimulationError
 from fhnn.files import atomic_output, check_input_file
 from fhnn.physics.actuation import actuation_force
 from fhnn.physics.integrators import adaptive_solve
-from fhnn.physics.planar import PlanarEquations
+from fhnn.physics.planar import body_force
 from fhnn.physics.planar_scenarios import PlanarScenario, get_planar_scenario
 
 Array = jax.Array
@@ -41,14 +48,34 @@ TRUTH_TOL = 1e-10
 
 @dataclasses.dataclass(frozen=True)
 class PlanarSplit:
-    """One split: ``t`` (T,) [s]; ``states`` and ``states_clean`` (N, T, 6); ``forces`` (N, T, 3);
-    ``thrust`` (N, 3, 3, 3)."""
+    """One split of ``N`` trajectories padded to ``T`` samples.
+
+    Attributes:
+        t: sample times [s], ``(N, T)``, increasing along each row.
+        states: the states trained on, ``(N, T, 6)``: a simulation's observed states (noise
+            added, if any) or an import's smoothed estimates.
+        states_clean: the states scored against, ``(N, T, 6)``: a simulation's noise-free truth,
+            or an import's observed pose beside the estimated velocities.
+        forces: known body-frame forces and moment at the samples, ``(N, T, 3)`` [N, N, N·m].
+        thrust: the thrusters' sinusoids, ``(N, 3, 3, 3)`` (zero for an import).
+        lengths: each trajectory's number of samples, ``(N,)``.
+    """
 
     t: np.ndarray
     states: np.ndarray
     states_clean: np.ndarray
     forces: np.ndarray
     thrust: np.ndarray
+    lengths: np.ndarray
+
+    def residual(self) -> np.ndarray:
+        """The forces less the sinusoids at the samples, ``(N, T, 3)``: what
+        :func:`~fhnn.physics.planar.body_force` interpolates (zero to rounding for a simulation)."""
+        return self.forces - np.asarray(_forces(jnp.asarray(self.thrust), jnp.asarray(self.t)))
+
+    def valid(self) -> np.ndarray:
+        """Which samples are the trajectories' own (not padding), ``(N, T)`` bools."""
+        return np.arange(self.t.shape[1])[None, :] < self.lengths[:, None]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,9 +83,10 @@ class PlanarDataset:
     """A turning body's data set.
 
     Attributes:
-        scenario: the scenario's name; params: its parameters (the truth).
+        scenario: the scenario's name (``"imported"`` for a table); params: its parameters (the
+            truth), or for an import only ``{"time_dependent": bool}``.
         seed: the data seed; obs_noise: the noise's standard deviation on every state entry
-            [m, m, rad, m/s, m/s, rad/s].
+            [m, m, rad, m/s, m/s, rad/s] (for an import: the estimated noise of the positions [m]).
         mass, inertia, x_g: the body's known constants [kg, kg·m², m].
         splits: ``{"train", "val", "test"}`` → :class:`PlanarSplit`.
     """
@@ -72,25 +100,62 @@ class PlanarDataset:
     x_g: float
     splits: dict[str, PlanarSplit]
 
+    @property
+    def has_truth(self) -> bool:
+        """Whether the data were simulated (their truth known)."""
+        return "added_mass" in self.params
+
+    @property
+    def time_dependent(self) -> bool:
+        """Whether the flow may change with time (a simulation's modulation, an import's flag)."""
+        return bool(self.params.get("time_dependent", self.params.get("gamma_modulation", 0.0)))
+
     def truth(self) -> PlanarScenario:
-        """The scenario that made the data."""
+        """The scenario that made the data.
+
+        Raises:
+            DataFormatError: the data were imported (no truth).
+        """
+        if not self.has_truth:
+            raise DataFormatError("an imported data set has no truth to compare with")
         return PlanarScenario.from_dict(self.params)
 
 
 @eqx.filter_jit
-def _solve(eom: PlanarEquations, y0: Array, thrust: Array, ts: Array) -> tuple[Array, Array]:
-    def one(s0: Array, a: Array) -> tuple[Array, Array]:
+def solve_planar(
+    field: eqx.Module, y0: Array, thrust: Array, t: Array, residual: Array, *, tol: float, bound: float | None
+) -> tuple[Array, Array]:
+    """Trajectories of ``ṡ = field(s, t, τ(t))`` with Dopri8 stepping onto every sample time.
+
+    Args:
+        field: the true equations or a model, called as ``field(state (6,), t, τ (3,))``.
+        y0: starts, ``(N, 6)``; thrust: sinusoids, ``(N, 3, 3, 3)``.
+        t: output times [s], ``(N, T)``; residual: the forces less the sinusoids at them,
+            ``(N, T, 3)`` (:func:`~fhnn.physics.planar.body_force`).
+        tol: rtol = atol; bound: as :func:`~fhnn.physics.integrators.adaptive_solve`'s.
+
+    Returns:
+        ``(states (N, T, 6), ok (N,))``.
+    """
+
+    def one(s0: Array, a: Array, times: Array, r: Array) -> tuple[Array, Array]:
         return adaptive_solve(
-            lambda s, t: eom(s, t, actuation_force(a, t)), s0, ts, rtol=TRUTH_TOL, atol=TRUTH_TOL, dense=False
+            lambda s, tt: field(s, tt, body_force(a, tt, times, r)),
+            s0,
+            times,
+            rtol=tol,
+            atol=tol,
+            dense=False,
+            bound=bound,
         )
 
-    return jax.vmap(one)(y0, thrust)
+    return jax.vmap(one)(y0, thrust, t, residual)
 
 
 @jax.jit
-def _forces(thrust: Array, ts: Array) -> Array:
-    """The thrusters' forces ``(N, T, 3)`` at times ``ts`` (T,) for parameters ``(N, 3, 3, 3)``."""
-    return jax.vmap(lambda a: jax.vmap(lambda t: actuation_force(a, t))(ts))(thrust)
+def _forces(thrust: Array, t: Array) -> Array:
+    """The thrusters' forces ``(N, T, 3)`` at times ``t`` ``(N, T)`` for parameters ``(N, 3, 3, 3)``."""
+    return jax.vmap(lambda a, ts: jax.vmap(lambda tt: actuation_force(a, tt))(ts))(thrust, t)
 
 
 def simulate_planar(
@@ -140,15 +205,24 @@ def simulate_planar(
     splits = {}
     for split_name, n in zip(SPLITS, sizes, strict=True):
         length = test_duration if split_name == "test" else duration
-        ts = np.arange(round(length / dt) + 1) * dt
+        ts = np.tile(np.arange(round(length / dt) + 1) * dt, (n, 1))
         y0, thrust = sc.sample_initial_states(rng, n), sc.sample_thrust(rng, n)
-        states, ok = _solve(eom, jnp.asarray(y0), jnp.asarray(thrust), jnp.asarray(ts))
+        states, ok = solve_planar(
+            eom,
+            jnp.asarray(y0),
+            jnp.asarray(thrust),
+            jnp.asarray(ts),
+            jnp.zeros((*ts.shape, 3)),
+            tol=TRUTH_TOL,
+            bound=None,
+        )
         if not bool(jnp.all(ok)):
             raise SimulationError(f"{int(jnp.sum(~ok))} {split_name} trajectories of {name} did not finish")
         forces = _forces(jnp.asarray(thrust), jnp.asarray(ts))
         clean = np.asarray(states)
         observed = clean + (rng.normal(0.0, obs_noise, clean.shape) if obs_noise > 0 else 0.0)
-        splits[split_name] = PlanarSplit(ts, observed, clean, np.asarray(forces), thrust)
+        lengths = np.full(n, ts.shape[1])
+        splits[split_name] = PlanarSplit(ts, observed, clean, np.asarray(forces), thrust, lengths)
     return PlanarDataset(name, sc.to_dict(), seed, obs_noise, sc.mass, sc.inertia, sc.x_g, splits)
 
 
@@ -197,11 +271,25 @@ def read_planar(path: str | os.PathLike[str]) -> PlanarDataset:
         raise DataFormatError(f"{path}: not a readable turning-body data set ({err})") from None
     for name, s in out.splits.items():
         n, t = s.states.shape[:2]
-        shapes = {"t": (t,), "states": (n, t, 6), "states_clean": (n, t, 6), "forces": (n, t, 3)}
+        shapes = {
+            "t": (n, t),
+            "states": (n, t, 6),
+            "states_clean": (n, t, 6),
+            "forces": (n, t, 3),
+            "thrust": (n, 3, 3, 3),
+            "lengths": (n,),
+        }
         for key, shape in shapes.items():
             if getattr(s, key).shape != shape:
                 raise DataFormatError(f"{path}: {name}/{key} has shape {getattr(s, key).shape}, not {shape}")
     return out
 
 
-__all__ = ["PlanarDataset", "PlanarSplit", "read_planar", "simulate_planar", "write_planar"]
+__all__ = [
+    "PlanarDataset",
+    "PlanarSplit",
+    "read_planar",
+    "simulate_planar",
+    "solve_planar",
+    "write_planar",
+]

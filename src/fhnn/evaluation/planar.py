@@ -1,9 +1,12 @@
-"""Evaluating a model of a body that turns against the simulator's truth.
+"""Evaluating a model of a body that turns against the simulator's truth or a table's observations.
 
-- Forecasts: each test trajectory from its first observed state under its known thrust, integrated
-  with adaptive Dopri8 (rtol = atol = 1e-10); ``rmse_pos`` [m] over trajectories, both coordinates
-  and the checkpoints ``t = 1, 2, …, H`` s (as :mod:`fhnn.evaluation.metrics`), ``rmse_heading``
-  [rad] likewise; a forecast that fails to finish counts as diverged and makes both infinite.
+- Forecasts: each test trajectory from its first state (as trained on) under its known forcing,
+  integrated with adaptive Dopri8 (rtol = atol = 1e-10); ``rmse_pos`` [m] over trajectories, both
+  coordinates and the checkpoints ``1, 2, …, H`` s after each trajectory's start (the sample
+  nearest each: exact on a simulation's grid), against the reference states (a simulation's
+  truth, an import's observations); ``rmse_heading`` [rad] likewise, differences wrapped into
+  (−π, π]; a forecast that fails to finish counts as diverged and makes both infinite.
+  An imported data set gets only these, with the learned added masses.
 - Added masses: learned against true ``(m_11, m_22, m_66)``, relative errors.
 - Damping: per axis, the relative L2 error of the learned ``D(ν_r) ν_r`` against the truth's over
   the relative velocities the training split visits (under the true flow), and the largest local
@@ -17,66 +20,72 @@ from __future__ import annotations
 
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from scipy.spatial import cKDTree
 
-from fhnn.data.planar import PlanarDataset, PlanarSplit
+from fhnn.data.planar import PlanarDataset, PlanarSplit, solve_planar
 from fhnn.errors import ConfigError
 from fhnn.models.planar import PlanarFHNN
-from fhnn.physics.actuation import actuation_force
 from fhnn.physics.flows import velocity_field
-from fhnn.physics.integrators import adaptive_solve
 from fhnn.physics.planar import PlanarEquations, water_at_body
 
 Array = jax.Array
 ROLLOUT_TOL = 1e-10
+#: A forecast stops, as diverged, once any state entry exceeds this (model units: m, rad, m/s).
+ROLLOUT_BOUND = 1e6
 
 
-@eqx.filter_jit
-def _rollouts(field: eqx.Module, y0: Array, thrust: Array, ts: Array) -> tuple[Array, Array]:
-    def one(s0: Array, a: Array) -> tuple[Array, Array]:
-        return adaptive_solve(
-            lambda s, t: field(s, t, actuation_force(a, t)),
-            s0,
-            ts,
-            rtol=ROLLOUT_TOL,
-            atol=ROLLOUT_TOL,
-            dense=False,
-            bound=1e3,
-        )
+def checkpoints(split: PlanarSplit, horizon: float) -> np.ndarray:
+    """Each trajectory's sample nearest ``1, 2, …, H`` s after its start, ``(N, H)`` indices.
 
-    return jax.vmap(one)(y0, thrust)
+    Raises:
+        ConfigError: ``horizon`` is not a positive whole number of seconds, or a trajectory is
+            shorter than it.
+    """
+    if not (horizon > 0 and float(horizon).is_integer()):
+        raise ConfigError(f"horizon must be a positive whole number of seconds, got {horizon!r}")
+    last = split.t[np.arange(split.t.shape[0]), split.lengths - 1] - split.t[:, 0]
+    if np.min(last) < horizon - 1e-9:
+        raise ConfigError(f"horizon {horizon:g} s exceeds the shortest test trajectory ({np.min(last):g} s)")
+    marks = split.t[:, :1] + np.arange(1, int(horizon) + 1, dtype=float)[None, :]
+    gap = np.abs(split.t[:, None, :] - marks[:, :, None])
+    gap[~np.broadcast_to(split.valid()[:, None, :], gap.shape)] = np.inf
+    return np.argmin(gap, axis=2)
 
 
 def forecast(
     model: PlanarFHNN | PlanarEquations, split: PlanarSplit, horizon: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``model``'s forecasts of ``split`` from each trajectory's first observed state to
-    ``horizon`` [s]: states ``(N, T_H, 6)`` at the split's times up to ``horizon`` and whether
-    each finished, ``(N,)``."""
-    upto = int(np.searchsorted(split.t, horizon + 1e-9))
-    states, ok = _rollouts(
-        model, jnp.asarray(split.states[:, 0]), jnp.asarray(split.thrust), jnp.asarray(split.t[:upto])
+    """``model``'s forecasts of ``split`` from each trajectory's first state over its sample times
+    up to the latest of :func:`checkpoints`: states ``(N, T_H, 6)`` and whether each finished,
+    ``(N,)``."""
+    upto = int(checkpoints(split, horizon).max()) + 1
+    states, ok = solve_planar(
+        model,
+        jnp.asarray(split.states[:, 0]),
+        jnp.asarray(split.thrust),
+        jnp.asarray(split.t[:, :upto]),
+        jnp.asarray(split.residual()[:, :upto]),
+        tol=ROLLOUT_TOL,
+        bound=ROLLOUT_BOUND,
     )
     return np.asarray(states), np.asarray(ok)
 
 
 def forecast_errors(pred: np.ndarray, ok: np.ndarray, split: PlanarSplit, horizon: float) -> dict[str, float]:
-    """``rmse_pos`` [m] and ``rmse_heading`` [rad] at the whole seconds up to ``horizon`` against
-    the split's noise-free states, and the count of ``diverged`` forecasts."""
-    marks = np.arange(1, int(horizon) + 1, dtype=float)
-    idx = np.searchsorted(split.t, marks - 1e-9)
-    truth = split.states_clean[:, idx]
-    err = pred[:, idx] - truth
+    """``rmse_pos`` [m] and ``rmse_heading`` [rad] at :func:`checkpoints` up to ``horizon``
+    against the split's reference states, and the count of ``diverged`` forecasts."""
+    idx = checkpoints(split, horizon)
+    rows = np.arange(idx.shape[0])[:, None]
+    err = pred[rows, idx] - split.states_clean[rows, idx]
     finite = ok & np.all(np.isfinite(pred), axis=(1, 2))
     if not finite.all():
         return {"rmse_pos": float("inf"), "rmse_heading": float("inf"), "diverged": int((~finite).sum())}
     return {
         "rmse_pos": float(np.sqrt(np.mean(err[..., :2] ** 2))),
-        "rmse_heading": float(np.sqrt(np.mean(err[..., 2] ** 2))),
+        "rmse_heading": float(np.sqrt(np.mean(np.angle(np.exp(1j * err[..., 2])) ** 2))),
         "diverged": 0,
     }
 
@@ -86,9 +95,7 @@ def relative_velocities(dataset: PlanarDataset, max_points: int = 20000) -> np.n
     (an even subsample of at most ``max_points``)."""
     train = dataset.splits["train"]
     flow = dataset.truth().flow()
-    n, t = train.states_clean.shape[:2]
-    states = train.states_clean.reshape(-1, 6)
-    times = np.broadcast_to(train.t, (n, t)).reshape(-1)
+    states, times = train.states_clean[train.valid()], train.t[train.valid()]
     keep = np.linspace(0, states.shape[0] - 1, min(max_points, states.shape[0])).astype(int)
     s, tt = jnp.asarray(states[keep]), jnp.asarray(times[keep])
     nu_c = jax.vmap(lambda st, ti: water_at_body(flow, st[:3], ti))(s, tt)
@@ -119,14 +126,15 @@ def flow_error(
     """``rel_l2`` of the learned flow's velocity on the grid near the training positions (see the
     module's description), with the number of ``points`` and the ``times`` [s]."""
     train = dataset.splits["train"]
-    pos = train.states_clean[..., :2].reshape(-1, 2)
+    pos = train.states_clean[train.valid()][:, :2]
     lo, hi = pos.min(axis=0), pos.max(axis=0)
     gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
     grid = np.column_stack([gx.ravel(), gy.ravel()])
     dist, _ = cKDTree(pos).query(grid)
     grid = jnp.asarray(grid[dist <= reach])
     truth = dataset.truth().flow()
-    times = np.linspace(train.t[0], train.t[-1], n_times) if truth.time_dependent else np.zeros(1)
+    span = train.t[train.valid()]
+    times = np.linspace(span.min(), span.max(), n_times) if truth.time_dependent else np.zeros(1)
     u = np.asarray(velocity_field(truth, grid, jnp.asarray(times)))
     u_hat = np.asarray(velocity_field(model.flow, grid, jnp.asarray(times)))
     return {
@@ -137,21 +145,23 @@ def flow_error(
 
 
 def evaluate_planar(model: PlanarFHNN, dataset: PlanarDataset, *, horizon: float = 5.0) -> dict[str, Any]:
-    """Forecasts of the test split to ``horizon`` [s] (:func:`forecast_errors`), the added masses,
-    the damping (:func:`damping_errors`) and the flow (:func:`flow_error`) against the truth.
+    """Forecasts of the test split to ``horizon`` [s] (:func:`forecast_errors`) and, for a
+    simulation, the added masses, the damping (:func:`damping_errors`) and the flow
+    (:func:`flow_error`) against the truth; for an import, the learned added masses.
 
     Raises:
-        ConfigError: ``horizon`` is not a positive whole number of seconds within the test split.
+        ConfigError: ``horizon`` is not a positive whole number of seconds within every test
+            trajectory.
     """
-    length = float(dataset.splits["test"].t[-1])
-    if not (horizon > 0 and float(horizon).is_integer() and horizon <= length + 1e-9):
-        raise ConfigError(f"horizon must be a whole number of seconds in (0, {length:g}], got {horizon!r}")
     pred, ok = forecast(model, dataset.splits["test"], horizon)
     learned = np.asarray(model.added_mass())
+    report = {"horizon": horizon, "forecast": forecast_errors(pred, ok, dataset.splits["test"], horizon)}
+    if not dataset.has_truth:
+        masses = zip(("m_11", "m_22", "m_66"), learned, strict=True)
+        return {**report, "added_mass": {k: {"learned": float(a)} for k, a in masses}}
     true = np.asarray(dataset.params["added_mass"], float)
     return {
-        "horizon": horizon,
-        "forecast": forecast_errors(pred, ok, dataset.splits["test"], horizon),
+        **report,
         "added_mass": {
             name: {"learned": float(a), "true": float(b), "rel_error": float(abs(a - b) / b)}
             for name, a, b in zip(("m_11", "m_22", "m_66"), learned, true, strict=True)
@@ -162,6 +172,7 @@ def evaluate_planar(model: PlanarFHNN, dataset: PlanarDataset, *, horizon: float
 
 
 __all__ = [
+    "checkpoints",
     "damping_errors",
     "evaluate_planar",
     "flow_error",

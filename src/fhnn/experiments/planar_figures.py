@@ -36,8 +36,9 @@ def forecast_figure(
     trajectories: int = 4,
     every: float = 1.0,
 ) -> Path:
-    """Draw the first ``trajectories`` test trajectories to ``horizon`` [s], true (grey) and
-    forecast (blue), with the body's outline every ``every`` seconds, and write a PNG to ``path``.
+    """Draw the first ``trajectories`` test trajectories to ``horizon`` [s], the reference (grey:
+    a simulation's truth, an import's observations) and the forecast (blue), with the body's
+    outline at the samples nearest every ``every`` seconds, and write a PNG to ``path``.
 
     Returns:
         The path written.
@@ -45,20 +46,27 @@ def forecast_figure(
     test = dataset.splits["test"]
     pred, _ = forecast(model, test, horizon)
     n = min(trajectories, pred.shape[0])
-    step = max(1, round(every / float(test.t[1] - test.t[0])))
-    span = np.ptp(test.states_clean[:n, : pred.shape[1], :2].reshape(-1, 2), axis=0).max()
-    length = 0.06 * max(span, 1e-3)
+    reference = "truth" if dataset.has_truth else "observed"
+    shown = [(test.t[i, : pred.shape[1]] - test.t[i, 0]) <= horizon + 1e-9 for i in range(n)]
+    points = [test.states_clean[i, : pred.shape[1]][shown[i], :2] for i in range(n)]
+    span = np.ptp(np.concatenate(points), axis=0)
+    length = 0.06 * max(span.max(), 1e-3)
     fig, ax = plt.subplots(figsize=(6.5, 6.0))
     for i in range(n):
-        truth = test.states_clean[i, : pred.shape[1]]
-        drawn = ((truth, "-", "0.55", "truth"), (pred[i], "--", "tab:blue", "forecast"))
+        t = test.t[i, : pred.shape[1]][shown[i]] - test.t[i, 0]
+        marks = np.unique([np.argmin(np.abs(t - m)) for m in np.arange(0.0, t[-1] + 1e-9, every)])
+        drawn = (
+            (test.states_clean[i, : t.size], "-", "0.55", reference),
+            (pred[i, : t.size], "--", "tab:blue", "forecast"),
+        )
         for states, style, colour, label in drawn:
             ax.plot(states[:, 0], states[:, 1], style, color=colour, lw=1.0, label=label if i == 0 else None)
-            for k in range(0, pred.shape[1], step):
+            for k in marks:
                 if np.all(np.isfinite(states[k, :3])):
                     hull = Polygon(outline(states[k, :3], length), closed=True, fc="none", ec=colour, lw=0.8)
                     ax.add_patch(hull)
-    ax.plot([0.0], [0.0], "k+", ms=8, label="vortex centre")
+    if dataset.has_truth:
+        ax.plot([0.0], [0.0], "k+", ms=8, label="vortex centre")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -5,13 +5,16 @@
   flow included); the water's rotation ω/2 = −½∇²ψ_θ enters the yaw damping;
 - the added masses ``(m_11, m_22, m_66) = (m, m, I_z) · softplus(a)``, three positive constants;
 - the damping :class:`DampingNet` ``D(ν_r) = diag(d(ν_r))`` with ``d = d_s · softplus(MLP(ν_r / ν_s))``:
-  every entry positive, so ``ν_rᵀ D ν_r ≥ 0`` for any weights (dissipative by construction).
+  every entry positive, so ``ν_rᵀ D ν_r ≥ 0`` for any weights (dissipative by construction); or,
+  with ``damping = "full"``, a full ``D = S (L Lᵀ + K) S`` (``L`` lower triangular, ``K``
+  skew-symmetric, both from the MLP; ``S = diag(√d_s)``): coupled axes, still dissipative.
 
 The body's mass, yaw inertia and centre of gravity are known constants of the data set.
 """
 
 from __future__ import annotations
 
+import typing
 from typing import Any, Literal
 
 import equinox as eqx
@@ -19,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
+from fhnn.config import Config, check_nonnegative, check_positive, coerce, frozen_config
 from fhnn.data.planar import PlanarDataset
 from fhnn.models.fhnn import StreamNet
 from fhnn.physics.planar import AbstractPlanarDamping, PlanarEquations
@@ -36,6 +39,9 @@ class PlanarModelConfig(Config):
         time_modes: harmonics K of a time-dependent flow's basis in time (as
             :attr:`fhnn.models.fhnn.FHNNConfig.time_modes`).
         init_added_mass: the added masses' start, as fractions of ``(m, m, I_z)``.
+        damping: ``"diagonal"`` (one coefficient per axis) or ``"full"`` (a 3 × 3 matrix whose
+            symmetric part is positive semi-definite: the axes coupled, e.g. a sway force from
+            the yaw rate).
         damping_inputs: what the damping net sees: ``"speeds"`` (``|ν_r| / ν_s`` per entry,
             smoothed within 1e-3 ν_s of zero: a damping even in each of surge, sway and yaw, as a
             hull symmetric fore–aft and port–starboard) or ``"velocity"`` (``ν_r / ν_s``).
@@ -47,33 +53,51 @@ class PlanarModelConfig(Config):
     depth: int = 3
     time_modes: int = 8
     init_added_mass: float = 0.5
+    damping: Literal["diagonal", "full"] = "diagonal"
     damping_inputs: Literal["velocity", "speeds"] = "speeds"
 
     def validate(self) -> None:
         check_positive(self, "width", "depth", "init_added_mass")
         check_nonnegative(self, "time_modes")
+        hints = typing.get_type_hints(type(self))
+        for name in ("damping", "damping_inputs"):
+            coerce(hints[name], getattr(self, name), name)
 
 
 class DampingNet(AbstractPlanarDamping):
-    """``D(ν_r) ν_r = d(ν_r) ⊙ ν_r`` with ``d = d_s · softplus(MLP(ν_r / ν_s))`` [N·s/m, N·s/m, N·m·s];
-    ``ν_s`` and ``d_s`` are data-derived constants, held behind ``stop_gradient``; with ``even``, the
-    MLP sees ``√((ν_r / ν_s)² + 10⁻⁶)`` per entry instead."""
+    """``D(ν_r) ν_r`` [N, N, N·m]. Diagonal: ``D = diag(d_s · softplus(MLP(x)))``; full:
+    ``D = S (L Lᵀ + K) S`` with ``S = diag(√d_s)``, the MLP's nine outputs giving ``L``'s diagonal
+    (through softplus) and lower entries and ``K``'s three skew entries. ``x = ν_r / ν_s``, or with
+    ``even`` ``√((ν_r / ν_s)² + 10⁻⁶)`` per entry; ``ν_s`` [m/s, m/s, rad/s] and ``d_s``
+    [N·s/m, N·s/m, N·m·s] are data-derived constants, held behind ``stop_gradient``."""
 
     mlp: eqx.nn.MLP
     nu_scale: Array  # (3,) [m/s, m/s, rad/s]
     d_scale: Array  # (3,)
     even: bool = eqx.field(static=True, default=False)
+    full: bool = eqx.field(static=True, default=False)
 
-    def coefficients(self, nu_r: Array) -> Array:
-        """``d(ν_r)``, shape ``(3,)``, every entry > 0."""
+    def matrix(self, nu_r: Array) -> Array:
+        """``D(ν_r)``, shape ``(3, 3)``; its symmetric part is positive semi-definite."""
         nu_s, d_s = jax.lax.stop_gradient((self.nu_scale, self.d_scale))
         x = nu_r / nu_s
         if self.even:
             x = jnp.sqrt(x**2 + 1e-6)
-        return d_s * jax.nn.softplus(self.mlp(x))
+        out = self.mlp(x)
+        if not self.full:
+            return jnp.diag(d_s * jax.nn.softplus(out))
+        lower = jnp.diag(jax.nn.softplus(out[:3]))
+        lower = lower.at[jnp.array([1, 2, 2]), jnp.array([0, 0, 1])].set(out[3:6])
+        skew = jnp.zeros((3, 3)).at[jnp.array([1, 2, 2]), jnp.array([0, 0, 1])].set(out[6:9])
+        root = jnp.sqrt(d_s)
+        return root[:, None] * (lower @ lower.T + skew - skew.T) * root[None, :]
+
+    def coefficients(self, nu_r: Array) -> Array:
+        """The diagonal of ``D(ν_r)``, shape ``(3,)``, every entry ≥ 0."""
+        return jnp.diag(self.matrix(nu_r))
 
     def __call__(self, nu_r: Array) -> Array:
-        return self.coefficients(nu_r) * nu_r
+        return self.matrix(nu_r) @ nu_r
 
 
 class PlanarFHNN(eqx.Module):
@@ -110,20 +134,20 @@ class PlanarFHNN(eqx.Module):
 
 def planar_arguments(dataset: PlanarDataset) -> dict[str, Any]:
     """Data-derived arguments of :func:`build_planar_fhnn`: the known body constants, whether the
-    flow depends on time (the scenario's modulation), and the scales of the training split."""
+    flow depends on time, and the scales of the training split."""
     train = dataset.splits["train"]
-    states = train.states.reshape(-1, 6)
+    states = train.states[train.valid()]
     nu = states[:, 3:]
     pos = states[:, :2]
     return {
         "mass": dataset.mass,
         "inertia": dataset.inertia,
         "x_g": dataset.x_g,
-        "time_dependent": bool(dataset.params.get("gamma_modulation", 0.0)),
+        "time_dependent": dataset.time_dependent,
         "length_scale": float(np.sqrt(np.mean(np.sum(pos**2, axis=-1)))),
         "speed_scale": float(np.sqrt(np.mean(nu[:, :2] ** 2))),
         "rate_scale": float(np.sqrt(np.mean(nu[:, 2] ** 2))),
-        "time_scale": float(train.t[-1]),
+        "time_scale": float(np.max(train.t[train.valid()])),
     }
 
 
@@ -165,7 +189,8 @@ def build_planar_fhnn(
         linear=jnp.zeros(2),
         time_modes=modes,
     )
-    damp_mlp = eqx.nn.MLP(3, 3, config.width, config.depth, activation=jnp.tanh, key=k_damp)
+    full = config.damping == "full"
+    damp_mlp = eqx.nn.MLP(3, 9 if full else 3, config.width, config.depth, activation=jnp.tanh, key=k_damp)
     last = damp_mlp.layers[-1]
     damp_mlp = eqx.tree_at(lambda m: m.layers[-1].weight, damp_mlp, last.weight * 0.1)
     # damping scales: a body of this mass stopping in about a second
@@ -175,6 +200,7 @@ def build_planar_fhnn(
         nu_scale=jnp.asarray([speed_scale, speed_scale, max(rate_scale, 1e-6)], float),
         d_scale=d_scale,
         even=config.damping_inputs == "speeds",
+        full=full,
     )
     raw = float(np.log(np.expm1(config.init_added_mass)))
     return PlanarFHNN(

@@ -23,6 +23,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from fhnn.physics.actuation import actuation_force
 from fhnn.physics.body import AbstractLaw
 from fhnn.physics.flows import AbstractFlow
 from fhnn.physics.numerics import safe_norm
@@ -58,6 +59,14 @@ def added_mass_matrix(diagonal: Array, m_26: Array = 0.0) -> Array:
     m11, m22, m66 = diagonal[0], diagonal[1], diagonal[2]
     z = jnp.zeros_like(m11)
     return jnp.array([[m11, z, z], [z, m22, m_26], [z, m_26, m66]])
+
+
+def body_force(thrust: Array, t: Array, knots: Array, residual: Array) -> Array:
+    """``τ(t) = (X, Y, N)`` [N, N, N·m], shape ``(3,)``: the thrusters' sinusoids ``thrust``
+    ``(3, 3, 3)`` (:func:`~fhnn.physics.actuation.actuation_force`) plus the linear interpolant at
+    ``t`` [s] of ``residual`` ``(K, 3)`` sampled at the increasing times ``knots`` ``(K,)`` (held
+    constant outside them)."""
+    return actuation_force(thrust, t) + jax.vmap(jnp.interp, (None, None, 1))(t, knots, residual)
 
 
 def coriolis(momentum: Array, velocity: Array, rate: Array) -> Array:
@@ -201,6 +210,7 @@ __all__ = [
     "DiagonalDamping",
     "PlanarEquations",
     "added_mass_matrix",
+    "body_force",
     "coriolis",
     "munk_growth_rate",
     "rigid_body_mass",

@@ -71,12 +71,7 @@ class PlanarScenario(Config):
 
     def flow(self) -> AbstractFlow:
         """The vortex: Γ(t) = Γ (1 + m sin(2π t / period))."""
-        return LambOseenVortex(
-            gamma=self.gamma,
-            core_radius=self.core_radius,
-            modulation=self.gamma_modulation,
-            period=self.gamma_period,
-        )
+        return LambOseenVortex(self.gamma, self.core_radius, self.gamma_modulation, self.gamma_period)
 
     def damping(self) -> DiagonalDamping:
         """The body's damping (docs/spec.md §7)."""

@@ -1,9 +1,10 @@
 """Training a :class:`~fhnn.models.planar.PlanarFHNN` on a turning body's data set.
 
-The loss is the one-step prediction error: from every observed state ``s_k`` of the training
-split, ``substeps`` RK4 steps of the model under the known thrust (exact between samples) predict
-``s_{k+1}``; the residual ``(ŝ_{k+1} − s_{k+1}) / (Δt · c)``, with ``c`` each state entry's RMS rate
-over the split, is a scaled error of the vector field. Adam (cosine-decayed learning rate) runs
+The loss is the one-step prediction error: from every state ``s_k`` of the training split,
+``substeps`` RK4 steps of the model under the known forcing (``body_force`` of
+:mod:`fhnn.physics.planar` on the interval) predict ``s_{k+1}``; the residual
+``(ŝ_{k+1} − s_{k+1}) / (Δt · c)``, with ``c`` each state entry's RMS rate over the split, is a
+scaled error of the vector field. Adam (cosine-decayed learning rate) runs
 first, then L-BFGS polishes; the model kept is the one with the lowest loss on the validation split.
 """
 
@@ -22,8 +23,8 @@ import optax
 from fhnn.config import Config, check_nonnegative, check_positive, frozen_config
 from fhnn.data.planar import PlanarDataset, PlanarSplit
 from fhnn.models.planar import PlanarFHNN, PlanarModelConfig, build_planar_fhnn, planar_arguments
-from fhnn.physics.actuation import actuation_force
 from fhnn.physics.integrators import rk4_step
+from fhnn.physics.planar import body_force
 
 Array = jax.Array
 #: Called as ``progress(phase, step, steps, train_loss)`` now and then.
@@ -73,36 +74,45 @@ class PlanarFit:
 
 
 def _pairs(split: PlanarSplit) -> tuple[Array, ...]:
-    """``(s_k, s_{k+1}, t_k, Δt, thrust)`` over every trajectory and interval, flattened."""
+    """``(s_k, s_{k+1}, (t_k, t_{k+1}), thrust, (r_k, r_{k+1}))`` over every trajectory's own
+    intervals (padding left out), flattened; ``r`` the forces less the sinusoids."""
     n, t = split.states.shape[:2]
-    s0 = split.states[:, :-1].reshape(-1, 6)
-    s1 = split.states[:, 1:].reshape(-1, 6)
-    t0 = np.broadcast_to(split.t[:-1], (n, t - 1)).reshape(-1)
-    dt = np.broadcast_to(np.diff(split.t), (n, t - 1)).reshape(-1)
-    thrust = np.repeat(split.thrust, t - 1, axis=0)
-    return tuple(jnp.asarray(a) for a in (s0, s1, t0, dt, thrust))
+    own = (split.valid()[:, 1:]).reshape(-1)
+    residual = split.residual()
+
+    def ends(a: np.ndarray) -> np.ndarray:
+        return np.stack([a[:, :-1], a[:, 1:]], axis=2).reshape(n * (t - 1), 2, *a.shape[2:])[own]
+
+    s0 = split.states[:, :-1].reshape(-1, 6)[own]
+    s1 = split.states[:, 1:].reshape(-1, 6)[own]
+    thrust = np.repeat(split.thrust, t - 1, axis=0)[own]
+    return tuple(jnp.asarray(a) for a in (s0, s1, ends(split.t), thrust, ends(residual)))
 
 
 def rate_scales(split: PlanarSplit) -> Array:
-    """Each state entry's RMS rate of change over ``split`` (finite differences), shape ``(6,)``."""
-    rates = np.diff(split.states, axis=1) / np.diff(split.t)[None, :, None]
-    return jnp.asarray(np.sqrt(np.mean(rates.reshape(-1, 6) ** 2, axis=0)))
+    """Each state entry's RMS rate of change over ``split``'s own intervals (finite differences),
+    shape ``(6,)``."""
+    rates = np.diff(split.states, axis=1) / np.diff(split.t, axis=1)[..., None]
+    own = split.valid()[:, 1:]
+    return jnp.asarray(np.sqrt(np.mean(rates[own] ** 2, axis=0)))
 
 
 def step_residuals(model: PlanarFHNN, pairs: tuple[Array, ...], scales: Array, substeps: int) -> Array:
     """The scaled one-step residuals, shape ``(P, 6)``."""
-    s0, s1, t0, dt, thrust = pairs
+    s0, s1, times, thrust, residual = pairs
 
-    def one(s: Array, target: Array, t: Array, h: Array, a: Array) -> Array:
+    def one(s: Array, target: Array, ends: Array, a: Array, r: Array) -> Array:
+        t, h = ends[0], ends[1] - ends[0]
+
         def field(state: Array, time: Array) -> Array:
-            return model(state, time, actuation_force(a, time))
+            return model(state, time, body_force(a, time, ends, r))
 
         step = h / substeps
         for i in range(substeps):
             s = rk4_step(field, s, t + i * step, step)
         return (s - target) / (h * scales)
 
-    return jax.vmap(one)(s0, s1, t0, dt, thrust)
+    return jax.vmap(one)(s0, s1, times, thrust, residual)
 
 
 def _loss(
