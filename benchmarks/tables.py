@@ -398,6 +398,40 @@ def render_turning(record: dict[str, Any]) -> str:
     return _table(header, rows)
 
 
+def render_turning_table(record: dict[str, Any]) -> str:
+    """The 3-DOF model trained on a noisy, irregular table of its own scenarios."""
+    runs = record["runs"]
+    measures = [
+        ("noise found, position [m]", lambda r: _g(r["import"]["noise_estimate"]["position"])),
+        ("noise found, heading [rad]", lambda r: _g(r["import"]["noise_estimate"]["heading"])),
+        *[
+            (f"estimated {k}, RMS error [{unit}]", lambda r, k=k: _g(r["import"]["rms_state_error"][k]))
+            for k, unit in (("u", "m/s"), ("v", "m/s"), ("r", "rad/s"))
+        ],
+        ("RMSE(pos) at 5 s, against the truth [m]", lambda r: _g(r["forecast_truth"]["rmse_pos"])),
+        ("RMSE(pos) at 5 s, against the table [m]", lambda r: _g(r["forecast_observed"]["rmse_pos"])),
+        ("RMSE(heading) at 5 s, against the truth [rad]", lambda r: _g(r["forecast_truth"]["rmse_heading"])),
+        *[
+            (name, lambda r, n=name: _pct(r["added_mass"][n]["rel_error"]))
+            for name in ("m_11", "m_22", "m_66")
+        ],
+        *[
+            (f"damping, {axis} (L2)", lambda r, a=axis: _pct(r["damping"][a]["rel_l2"]))
+            for axis in ("surge", "sway", "yaw")
+        ],
+        ("flow (L2)", lambda r: _pct(r["flow"]["rel_l2"])),
+        ("training [s]", lambda r: f"{r['train_seconds']:.0f}"),
+    ]
+    header = ["measure", *[f"`{n}`" for n in runs]]
+    rows = [[label, *[fn(r) for r in runs.values()]] for label, fn in measures]
+    caption = (
+        f"*Table: {record['sampling']}, noise {_g(record['position_noise'])} m on x, y and "
+        f"{_g(record['heading_noise'])} rad on the heading; data seed {record['data_seed']} "
+        f"({record['seed_role']}).*"
+    )
+    return caption + "\n\n" + _table(header, rows)
+
+
 def render_turning_choice(record: dict[str, Any]) -> str:
     """A choice of the 3-DOF model's settings: each run's validation loss (what chose) and more."""
     header = ["scenario", "setting", "validation loss", "last training loss", "training [s]"]
@@ -459,6 +493,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
         "track_fit_solvers",
         "calibration",
         "turning_choice",
+        "turning_table",
         "turning",
         "station_keeping",
     )
