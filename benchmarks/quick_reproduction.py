@@ -22,7 +22,8 @@ and how far the two runs' validation losses part.
 With ``--ray`` it runs ``--quick`` on the local executor and as Ray tasks on a cluster it starts
 (``--ray local``; needs ``pip install 'fhnn[ray]'``), each with an empty compilation cache, and
 checks that every job's metrics are bitwise those of the local run (both compile with
-``fast_compile``'s XLA flags) and both reports pass; it stands in for the slow test
+``fast_compile``'s XLA flags) and both reports pass (``benchmarks/results/quick_reproduction_ray.json``);
+it stands in for the slow test
 ``tests/test_reproduce.py::test_ray_cluster_gives_the_numbers_of_the_local_executor``.
 
 Usage::
@@ -208,6 +209,9 @@ def main() -> None:
 if __name__ == "__main__":
     if len(sys.argv) == 1:  # the default question: its printed answer is the result file
         with printed_result("quick_reproduction"):
+            main()
+    elif sys.argv[1:] == ["--ray"]:  # the executors compared: its printed answer is a result file too
+        with printed_result("quick_reproduction_ray"):
             main()
     else:
         main()

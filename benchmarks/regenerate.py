@@ -56,6 +56,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
     },
     "How fast?": {
         "quick_reproduction.py": ["quick_reproduction"],
+        "quick_reproduction.py --ray": ["quick_reproduction_ray"],
         "own_data.py --speed-only": ["import_speed"],
     },
 }

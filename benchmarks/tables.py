@@ -432,6 +432,42 @@ def render_turning_table(record: dict[str, Any]) -> str:
     return caption + "\n\n" + _table(header, rows)
 
 
+def render_shipmmg(record: dict[str, Any]) -> str:
+    """The 3-DOF model against KVLCC2 in shipmmg: the one-step model and the track fit beside the
+    targets."""
+    stages = [(name, record[name]) for name in ("one_step", "track_fit") if name in record]
+    targets = record["targets"]
+    pos, heading = targets["rmse_pos_60"], targets["rmse_heading_60_deg"]
+    measures = [
+        *[
+            (f"added mass {a}", lambda r, a=a: _pct(r["added_mass"][a]["rel_error"]),
+             _pct(targets["added_mass"]) if a != "m_11" else "—")
+            for a in ("m_11", "m_22", "m_66")
+        ],
+        *[
+            (f"total inertia, {a}", lambda r, a=a: _pct(r["total_inertia"][a]["rel_error"]),
+             _pct(targets["total_inertia"]))
+            for a in ("m_11", "m_22", "m_66")
+        ],
+        ("held-out RMSE(pos) over 1-60 s [m]", lambda r: _g(r["forecast"]["rmse_pos_60"]), _g(pos)),
+        ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]),
+         _g(heading)),
+        ("normalised RMSE over the whole track", lambda r: _pct(r["forecast"]["nrmse_track"]),
+         f"published: {_pct(record['published_nrmse'])}"),
+        ("seconds", lambda r: f"{r.get('train_seconds', r.get('seconds', float('nan'))):.0f}", ""),
+    ]  # fmt: skip
+    header = ["measure", *[f"`{n}`" for n, _ in stages], "target"]
+    rows = [[label, *[fn(r) for _, r in stages], target] for label, fn, target in measures]
+    caption = (
+        f"*15 manoeuvres of 90 s (held out: {', '.join(record['split']['test'])}), noise "
+        f"{_g(record['position_noise'])} m on x, y and {_g(record['heading_noise'])} rad on the heading, "
+        f"samples 0.4-0.6 s apart; damping `{record['damping']}`; errors are relative to shipmmg's values; "
+        "the forecasts run from each held-out track's first estimated state under its recorded forcing "
+        "and are scored against shipmmg's noise-free trajectory.*"
+    )
+    return caption + "\n\n" + _table(header, rows)
+
+
 def render_turning_choice(record: dict[str, Any]) -> str:
     """A choice of the 3-DOF model's settings: each run's validation loss (what chose) and more."""
     header = ["scenario", "setting", "validation loss", "last training loss", "training [s]"]
@@ -496,6 +532,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
         "turning_table",
         "turning",
         "station_keeping",
+        "shipmmg",
     )
     base = next((b for b in kinds if name.startswith(b)), name)
     if f"render_{base}" in globals():

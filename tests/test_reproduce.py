@@ -441,13 +441,15 @@ def _results(out: Path) -> list[str]:
     return [p.read_text() for p in sorted((out / "jobs").glob("*/result.json"))]
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:os.fork")
 def test_ray_cluster_gives_the_numbers_of_the_local_executor(tmp_path: Path) -> None:
     """An FHNN job on a one-CPU Ray cluster gives the bytes of the same job in a local worker.
     Both compile with ``fast_compile``'s XLA flags (local workers set them as they start, Ray
-    starts its workers with them): a worker without them would differ in the last bits.
-    ``benchmarks/quick_reproduction.py --ray`` makes the same check on every job of
-    ``fhnn reproduce --quick``."""
+    starts its workers with them): a worker without them would differ in the last bits. Left out
+    of the default run (45 s of a worker in a 2-core suite): ``benchmarks/quick_reproduction.py
+    --ray`` makes the same check on every job of ``fhnn reproduce --quick``
+    (``benchmarks/results/quick_reproduction_ray.json``)."""
     ray = pytest.importorskip("ray")
     config = ReproduceConfig.from_dict({**TWO_JOBS, "models": ("fhnn",), "fast_compile": True})
     local = reproduce(config, tmp_path / "local", workers=1)  # one worker process, for the flags

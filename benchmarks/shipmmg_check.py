@@ -1,0 +1,357 @@
+"""Independent check of the 3-DOF model against another simulator: KVLCC2 in `shipmmg`.
+
+`shipmmg` (PyPI) integrates the MMG standard model (Yasukawa & Yoshimura 2015) of the KVLCC2
+7 m model ship with the parameters of its own tests, made dimensional here. Still water. For
+``--data-seed`` this script simulates 15 manoeuvres of 90 s — turning circles, 10/10 and 20/20
+zigzags, changes of propeller speed and random rudder sequences, their amplitudes and speeds
+drawn from the seed — and gives them as a tracker would: the midship point's position with
+``--position-noise`` [m] and the heading with ``--heading-noise`` [rad], at irregular times 0.4-0.6
+s apart, beside the propeller's and the rudder's forces and moment (``Fu, Fv, Mz`` about midship,
+noise-free: the known forcing). The table is imported (:func:`fhnn.api.planar.import_turning`;
+mass, yaw inertia about midship and the centre of gravity 0.25 m ahead of it are known), 60 % of
+the manoeuvres trained on, 20 % validated, 20 % held out; the model trains with the defaults
+but ``--damping`` and is judged on:
+
+- the learned added masses against shipmmg's ``m_x, m_y, J_z`` and the total inertias
+  (rigid + added) on the three axes;
+- forecasts of the held-out manoeuvres from their first (estimated) state under their recorded
+  forcing, RMSE of position and heading at every whole second up to 60 s against shipmmg's
+  noise-free trajectory, and the normalised RMSE over the whole track (RMSE over the track's
+  range, per coordinate, averaged) beside the published Koopman + neural-ODE figure.
+
+MMG's hull moment holds the Munk moment inside ``N_v``; FHNN writes it explicitly from the
+added masses, so its damping net has to represent MMG's hull forces less the Munk moment
+(docs/design/turning.md). Issue 71's targets are printed beside each figure. Seeds:
+``benchmarks/seeds.toml`` ``[shipmmg]``.
+
+    python benchmarks/shipmmg_check.py --data-seed 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from _common import RESULTS, seed_role, stamp
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+RHO = 1025.0
+L_PP, B, D = 7.00, 1.27, 0.46
+X_G = 0.25
+#: Issue 71's targets.
+TARGETS = {"total_inertia": 0.03, "added_mass": 0.05, "rmse_pos_60": 0.5, "rmse_heading_60_deg": 2.0}
+#: Published: Koopman + neural ODE on KVLCC2, normalised RMSE over 200 s at 5 % noise.
+PUBLISHED_NRMSE = 0.06
+DT = 0.05
+DURATION = 90.0
+HORIZON = 60.0
+
+
+def kvlcc2():
+    """shipmmg's KVLCC2 7 m parameters (its tests), dimensional."""
+    from shipmmg.mmg_3dof import Mmg3DofBasicParams, Mmg3DofManeuveringParams
+
+    half = 0.5 * RHO * L_PP**2 * D
+    mass = RHO * 3.27
+    basic = Mmg3DofBasicParams(
+        L_pp=L_PP, B=B, d=D, x_G=X_G, D_p=0.216, m=mass, I_zG=mass * (0.25 * L_PP) ** 2, A_R=0.0539,
+        η=0.216 / 0.345, m_x=0.022 * half, m_y=0.223 * half, J_z=0.011 * half * L_PP**2, f_α=2.747,
+        ϵ=1.09, t_R=0.387, x_R=-0.500 * L_PP, a_H=0.312, x_H=-0.464 * L_PP, γ_R_minus=0.395,
+        γ_R_plus=0.640, l_R=-0.710, κ=0.50, t_P=0.220, w_P0=0.40, x_P=-0.650,
+    )  # fmt: skip
+    manoeuvring = Mmg3DofManeuveringParams(
+        k_0=0.2931, k_1=-0.2753, k_2=-0.1385, R_0_dash=0.022, X_vv_dash=-0.040, X_vr_dash=0.002,
+        X_rr_dash=0.011, X_vvvv_dash=0.771, Y_v_dash=-0.315, Y_r_dash=0.083, Y_vvv_dash=-1.607,
+        Y_vvr_dash=0.379, Y_vrr_dash=-0.391, Y_rrr_dash=0.008, N_v_dash=-0.137, N_r_dash=-0.049,
+        N_vvv_dash=-0.030, N_vvr_dash=-0.294, N_vrr_dash=0.055, N_rrr_dash=-0.013,
+    )  # fmt: skip
+    return basic, manoeuvring
+
+
+def ramp(t: np.ndarray, times: list[float], angles: list[float], rate: float) -> np.ndarray:
+    """A rudder that moves at ``rate`` [rad/s] towards ``angles[k]`` from ``times[k]`` on."""
+    out = np.zeros_like(t)
+    angle = 0.0
+    k = -1
+    for i, ti in enumerate(t):
+        while k + 1 < len(times) and ti >= times[k + 1]:
+            k += 1
+        target = angles[k] if k >= 0 else 0.0
+        if i:
+            step = rate * (ti - t[i - 1])
+            angle = angle + np.clip(target - angle, -step, step)
+        out[i] = angle
+    return out
+
+
+def manoeuvres(seed: int) -> list[dict]:
+    """15 manoeuvres, their rudder [rad] and propeller [rps] on a 0.05 s grid, drawn from ``seed``."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, DURATION + DT / 2, DT)
+    rate = np.deg2rad(2.32)  # the model's rudder rate (15.8 °/s full scale, Froude-scaled)
+    out = []
+    for k in range(4):  # turning circles
+        angle = np.deg2rad(rng.uniform(10, 35)) * (1 if k % 2 else -1)
+        nps = rng.uniform(12, 18)
+        out.append(
+            {"name": f"turn{k}", "t": t, "delta": ramp(t, [5.0], [angle], rate), "nps": np.full_like(t, nps)}
+        )
+    for k in range(4):  # zigzags: the rudder reverses when the heading passes ±amplitude
+        amplitude = np.deg2rad(10.0 if k < 2 else 20.0)
+        out.append({"name": f"zigzag{k}", "t": t, "zigzag": amplitude * (1 if k % 2 else -1),
+                    "nps": np.full_like(t, rng.uniform(12, 18))})  # fmt: skip
+    for k in range(4):  # propeller speed changes under a small rudder
+        steps = np.sort(rng.uniform(10, 80, 2))
+        levels = rng.uniform(8, 18, 3)
+        nps = np.select([t < steps[0], t < steps[1]], levels[:2], levels[2])
+        nps = np.convolve(np.pad(nps, 20, mode="edge"), np.ones(41) / 41, mode="valid")  # 2 s change
+        angle = np.deg2rad(rng.uniform(-10, 10))
+        out.append({"name": f"propeller{k}", "t": t, "delta": ramp(t, [2.0], [angle], rate), "nps": nps})
+    for k in range(3):  # random rudder sequences
+        times = list(np.arange(5.0, DURATION, 10.0))
+        angles = list(np.deg2rad(rng.uniform(-25, 25, len(times))))
+        out.append({"name": f"random{k}", "t": t, "delta": ramp(t, times, angles, rate),
+                    "nps": np.full_like(t, rng.uniform(12, 18))})  # fmt: skip
+    for m in out:
+        m["u0"] = 1.179 * m["nps"][0] / 17.95  # near the steady speed at the start's propeller
+    return out
+
+
+def simulate(m: dict, basic, manoeuvring) -> dict:
+    """shipmmg's trajectory on the 0.05 s grid: ``u, v, r`` (midship), ``x, y, psi``, rudder,
+    propeller, and the propeller's and rudder's force ``(X_P + X_R, Y_R, N_R)``."""
+    from shipmmg.mmg_3dof import (
+        get_sub_values_from_simulation_result,
+        simulate_mmg_3dof,
+        zigzag_test_mmg_3dof,
+    )
+
+    t = m["t"]
+    if "zigzag" in m:
+        amplitude = m["zigzag"]
+        delta, u, v, r, x, y, psi = map(
+            np.asarray,
+            zigzag_test_mmg_3dof(
+                basic, manoeuvring, amplitude, abs(amplitude), list(t), list(m["nps"]),
+                δ_rad_rate=np.deg2rad(2.32), u0=m["u0"], ρ=RHO, rtol=1e-10, atol=1e-10,
+            ),
+        )  # fmt: skip
+    else:
+        delta = m["delta"]
+        sol = simulate_mmg_3dof(
+            basic, manoeuvring, list(t), list(delta), list(m["nps"]), u0=m["u0"], ρ=RHO,
+            method="DOP853", rtol=1e-10, atol=1e-10,
+        )  # fmt: skip
+        u, v, r, x, y, psi = sol.sol(t)[:6]
+    xp = get_sub_values_from_simulation_result(u, v, r, delta, m["nps"], basic, manoeuvring, ρ=RHO)
+    x_r, x_p, y_r, n_r = (np.asarray(xp[k]) for k in (1, 2, 4, 6))
+    force = np.stack([x_p + x_r, y_r, n_r], axis=1)
+    return {
+        "t": t,
+        "state": np.stack([x, y, psi, u, v, r], axis=1),
+        "force": force,
+        "delta": delta,
+        "nps": m["nps"],
+    }
+
+
+def table(sims: list[dict], names: list[str], seed: int, position_noise: float, heading_noise: float):
+    """The tracker's table: irregular samples 0.4-0.6 s apart, noisy pose, known forcing."""
+    import pandas as pd
+
+    rng = np.random.default_rng(seed + 1000)
+    frames = []
+    for name, sim in zip(names, sims, strict=True):
+        rows = [0]
+        while rows[-1] + 12 < sim["t"].size:
+            rows.append(rows[-1] + int(rng.integers(8, 13)))
+        rows = np.asarray(rows)
+        s = sim["state"][rows]
+        heading = np.angle(
+            np.exp(1j * (s[:, 2] + heading_noise * rng.standard_normal(rows.size)))
+        )  # a compass
+        frames.append(
+            pd.DataFrame({
+                "traj_id": name, "t": sim["t"][rows],
+                "x": s[:, 0] + position_noise * rng.standard_normal(rows.size),
+                "y": s[:, 1] + position_noise * rng.standard_normal(rows.size),
+                "heading": heading, "Fu": sim["force"][rows, 0], "Fv": sim["force"][rows, 1],
+                "Mz": sim["force"][rows, 2],
+            })
+        )  # fmt: skip
+    return pd.concat(frames, ignore_index=True)
+
+
+def judge(model, imported, truth: dict[str, dict]) -> dict:
+    """Forecasts of the test split from each first state against shipmmg's noise-free states."""
+    from fhnn.evaluation.planar import forecast
+
+    test = imported.splits["test"]
+    longest = float(np.min(test.t[np.arange(test.t.shape[0]), test.lengths - 1] - test.t[:, 0]))
+    horizon = float(np.floor(longest))
+    pred, ok = forecast(model, test, horizon)
+    per_track, errors60 = {}, []
+    for k, name in enumerate(imported.params["ids"]["test"]):
+        sim = truth[name]
+        n = min(pred.shape[1], int(test.lengths[k]))
+        times = test.t[k, :n]
+        exact = np.stack([np.interp(times, sim["t"], sim["state"][:, j]) for j in range(6)], axis=1)
+        err = pred[k, :n] - exact
+        err[:, 2] = np.angle(np.exp(1j * err[:, 2]))
+        marks = np.arange(1.0, HORIZON + 1)
+        at = np.argmin(np.abs((times - times[0])[None, :] - marks[:, None]), axis=1)
+        errors60.append(err[at])
+        span = np.ptp(exact[:, :3], axis=0)
+        per_track[name] = {
+            "finished": bool(ok[k]),
+            "rmse_pos_60": float(np.sqrt(np.mean(err[at, :2] ** 2))),
+            "rmse_heading_60_deg": float(np.rad2deg(np.sqrt(np.mean(err[at, 2] ** 2)))),
+            "nrmse_track": float(np.mean(np.sqrt(np.mean(err[:, :3] ** 2, axis=0)) / span)),
+            "seconds": float(times[-1] - times[0]),
+        }
+    e = np.concatenate(errors60)
+    return {
+        "rmse_pos_60": float(np.sqrt(np.mean(e[:, :2] ** 2))) if ok.all() else float("inf"),
+        "rmse_heading_60_deg": float(np.rad2deg(np.sqrt(np.mean(e[:, 2] ** 2))))
+        if ok.all()
+        else float("inf"),
+        "nrmse_track": float(np.mean([p["nrmse_track"] for p in per_track.values()])),
+        "tracks": per_track,
+    }
+
+
+def run(
+    seed: int,
+    damping: str,
+    position_noise: float,
+    heading_noise: float,
+    adam_steps: int | None,
+    track_fit: bool,
+    track_steps: int,
+) -> dict:
+    from fhnn.api.planar import import_turning, train_turning
+    from fhnn.models.planar import PlanarModelConfig
+    from fhnn.training.planar import PlanarTrainConfig
+    from fhnn.training.planar_tracks import PlanarTrackConfig, fit_planar_tracks
+
+    start = time.perf_counter()
+    basic, manoeuvring = kvlcc2()
+    plans = manoeuvres(seed)
+    sims = [simulate(m, basic, manoeuvring) for m in plans]
+    names = [m["name"] for m in plans]
+    print(f"simulated {len(sims)} manoeuvres in {time.perf_counter() - start:.0f} s", flush=True)
+    frame = table(sims, names, seed, position_noise, heading_noise)
+    inertia = basic.I_zG + X_G**2 * basic.m  # about midship, the tracked point
+    imported = import_turning(frame, mass=basic.m, inertia=inertia, x_g=X_G, split=(0.6, 0.2, 0.2), seed=seed)
+
+    def progress(phase: str, step: int, steps: int, loss: float) -> None:
+        if step % 500 == 0 or step == steps:
+            print(f"  {phase} {step}/{steps} train loss {loss:.3e}", flush=True)
+
+    training = PlanarTrainConfig() if adam_steps is None else PlanarTrainConfig(adam_steps=adam_steps)
+    fit = train_turning(
+        imported, model=PlanarModelConfig(damping=damping), training=training, progress=progress
+    )
+    truth = dict(zip(names, sims, strict=True))
+    report = {"one_step": judged(fit.model, imported, truth, basic, inertia)}
+    report["one_step"].update(train_seconds=fit.seconds, val_loss=fit.val_loss)
+    if track_fit:
+        tracks = fit_planar_tracks(fit.model, imported, PlanarTrackConfig(steps=track_steps))
+        print(
+            f"  track fit: val misfit {tracks.val_before:.3g} -> {tracks.val_after:.3g}, kept {tracks.kept}"
+        )
+        report["track_fit"] = judged(tracks.model, imported, truth, basic, inertia)
+        report["track_fit"].update(
+            seconds=tracks.seconds,
+            val_before=tracks.val_before,
+            val_after=tracks.val_after,
+            kept=tracks.kept,
+            iterations=len(tracks.history),
+            objective_first_last=tracks.history[:1] + tracks.history[-1:],
+        )
+    report.update(
+        split=imported.params["ids"],
+        noise_estimate=imported.params["noise"],
+        wall_seconds=time.perf_counter() - start,
+    )
+    return report
+
+
+def judged(model, imported, truth: dict, basic, inertia: float) -> dict:
+    """Added masses, total inertias and held-out forecasts of ``model``."""
+    learned = np.asarray(model.added_mass())
+    true_added = np.array([basic.m_x, basic.m_y, basic.J_z])
+    rigid = np.array([basic.m, basic.m, inertia])
+    axes = ("m_11", "m_22", "m_66")
+    return {
+        "added_mass": {
+            a: {"learned": float(lv), "true": float(tv), "rel_error": float(abs(lv / tv - 1))}
+            for a, lv, tv in zip(axes, learned, true_added, strict=True)
+        },
+        "total_inertia": {
+            a: {
+                "learned": float(lv + r),
+                "true": float(tv + r),
+                "rel_error": float(abs((lv + r) / (tv + r) - 1)),
+            }
+            for a, lv, tv, r in zip(axes, learned, true_added, rigid, strict=True)
+        },
+        "forecast": judge(model, imported, truth),
+    }
+
+
+def summary(name: str, part: dict) -> str:
+    masses = ", ".join(f"{k} {v['rel_error']:.1%}" for k, v in part["added_mass"].items())
+    totals = ", ".join(f"{k} {v['rel_error']:.1%}" for k, v in part["total_inertia"].items())
+    f = part["forecast"]
+    return (
+        f"{name}: added masses {masses} (target {TARGETS['added_mass']:.0%} for m_22, m_66); total inertias "
+        f"{totals} (target {TARGETS['total_inertia']:.0%}); held-out RMSE(pos)@60s {f['rmse_pos_60']:.3g} m "
+        f"(target {TARGETS['rmse_pos_60']}), heading {f['rmse_heading_60_deg']:.3g}° "
+        f"(target {TARGETS['rmse_heading_60_deg']}); normalised RMSE {f['nrmse_track']:.2%} "
+        f"(published {PUBLISHED_NRMSE:.0%} over 200 s at 5 % noise)"
+    )
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--data-seed", type=int, default=3)
+    p.add_argument("--damping", default="full", choices=("diagonal", "full"))
+    p.add_argument("--position-noise", type=float, default=0.02)
+    p.add_argument("--heading-noise", type=float, default=float(np.deg2rad(0.2)))
+    p.add_argument("--adam-steps", type=int, default=None, help="fewer Adam steps for a smoke run")
+    p.add_argument("--no-track-fit", action="store_true", help="the one-step model only")
+    p.add_argument("--track-steps", type=int, default=300, help="L-BFGS iterations of the track fit")
+    p.add_argument("--out", default=None, help="result file (default benchmarks/results/shipmmg_seedN.json)")
+    args = p.parse_args()
+    report = run(
+        args.data_seed, args.damping, args.position_noise, args.heading_noise, args.adam_steps,
+        not args.no_track_fit, args.track_steps,
+    )  # fmt: skip
+    for name in ("one_step", "track_fit"):
+        if name in report:
+            print(summary(name, report[name]))
+    record = {
+        **stamp(),
+        "data_seed": args.data_seed,
+        "seed_role": seed_role("shipmmg", args.data_seed),
+        "damping": args.damping,
+        "position_noise": args.position_noise,
+        "heading_noise": args.heading_noise,
+        "adam_steps": args.adam_steps,
+        "targets": TARGETS,
+        "published_nrmse": PUBLISHED_NRMSE,
+        **report,
+    }
+    target = Path(args.out) if args.out else RESULTS / f"shipmmg_seed{args.data_seed}.json"
+    target.write_text(json.dumps(record, indent=1))
+    print(f"wrote {target}")
+
+
+if __name__ == "__main__":
+    main()
