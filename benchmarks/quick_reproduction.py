@@ -178,7 +178,9 @@ def main() -> None:
         print("  reports: every check passed" if not missing else f"  reports: FAILED {missing}")
         if args.out is None:
             shutil.rmtree(base, ignore_errors=True)
-        sys.exit(1 if missing else 0)
+        if missing:
+            sys.exit(1)
+        return
     cache = base / "jax-cache"
     for sub in ("cold", "warm", "jax-cache"):
         shutil.rmtree(base / sub, ignore_errors=True)
