@@ -233,6 +233,7 @@ def run(
     adam_steps: int | None,
     track_fit: bool,
     track_steps: int,
+    damping_inputs: str = "speeds",
 ) -> dict:
     from fhnn.api.planar import import_turning, train_turning
     from fhnn.models.planar import PlanarModelConfig
@@ -254,9 +255,8 @@ def run(
             print(f"  {phase} {step}/{steps} train loss {loss:.3e}", flush=True)
 
     training = PlanarTrainConfig() if adam_steps is None else PlanarTrainConfig(adam_steps=adam_steps)
-    fit = train_turning(
-        imported, model=PlanarModelConfig(damping=damping), training=training, progress=progress
-    )
+    model = PlanarModelConfig(damping=damping, damping_inputs=damping_inputs)
+    fit = train_turning(imported, model=model, training=training, progress=progress)
     truth = dict(zip(names, sims, strict=True))
     report = {"one_step": judged(fit.model, imported, truth, basic, inertia)}
     report["one_step"].update(train_seconds=fit.seconds, val_loss=fit.val_loss)
@@ -325,13 +325,14 @@ def main() -> None:
     p.add_argument("--position-noise", type=float, default=0.02)
     p.add_argument("--heading-noise", type=float, default=float(np.deg2rad(0.2)))
     p.add_argument("--adam-steps", type=int, default=None, help="fewer Adam steps for a smoke run")
+    p.add_argument("--damping-inputs", default="speeds", choices=("speeds", "velocity"))
     p.add_argument("--no-track-fit", action="store_true", help="the one-step model only")
     p.add_argument("--track-steps", type=int, default=300, help="L-BFGS iterations of the track fit")
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/shipmmg_seedN.json)")
     args = p.parse_args()
     report = run(
         args.data_seed, args.damping, args.position_noise, args.heading_noise, args.adam_steps,
-        not args.no_track_fit, args.track_steps,
+        not args.no_track_fit, args.track_steps, args.damping_inputs,
     )  # fmt: skip
     for name in ("one_step", "track_fit"):
         if name in report:
@@ -341,6 +342,7 @@ def main() -> None:
         "data_seed": args.data_seed,
         "seed_role": seed_role("shipmmg", args.data_seed),
         "damping": args.damping,
+        "damping_inputs": args.damping_inputs,
         "position_noise": args.position_noise,
         "heading_noise": args.heading_noise,
         "adam_steps": args.adam_steps,
