@@ -124,40 +124,52 @@ def manoeuvres(seed: int) -> list[dict]:
 
 def simulate(m: dict, basic, manoeuvring) -> dict:
     """shipmmg's trajectory on the 0.05 s grid: ``u, v, r`` (midship), ``x, y, psi``, rudder,
-    propeller, and the propeller's and rudder's force ``(X_P + X_R, Y_R, N_R)``."""
-    from shipmmg.mmg_3dof import (
-        get_sub_values_from_simulation_result,
-        simulate_mmg_3dof,
-        zigzag_test_mmg_3dof,
-    )
+    propeller, and the propeller's and rudder's force ``(X_P + X_R, Y_R, N_R)`` from the rudder
+    angle and propeller speed the integration used (shipmmg integrates them from a cubic spline
+    of the given lists).
 
-    t = m["t"]
-    if "zigzag" in m:
-        amplitude = m["zigzag"]
-        delta, u, v, r, x, y, psi = map(
-            np.asarray,
-            zigzag_test_mmg_3dof(
-                basic, manoeuvring, amplitude, abs(amplitude), list(t), list(m["nps"]),
-                δ_rad_rate=np.deg2rad(2.32), u0=m["u0"], ρ=RHO, rtol=1e-10, atol=1e-10,
-            ),
-        )  # fmt: skip
-    else:
-        delta = m["delta"]
+    A zigzag runs stage by stage here: each stage starts from the state the last one reached at
+    the sample where the heading passed its bound, at that sample's time. (shipmmg's own
+    ``zigzag_test_mmg_3dof`` restarts each stage from the sample before, placed one sample later:
+    a jump of a 0.05 s step in every state at each reversal, which no equations of motion
+    produce.)"""
+    from shipmmg.mmg_3dof import get_sub_values_from_simulation_result, simulate_mmg_3dof
+
+    t, nps = m["t"], m["nps"]
+    rate = np.deg2rad(2.32)
+
+    def run(start: int, state: np.ndarray, delta: np.ndarray) -> np.ndarray:
         sol = simulate_mmg_3dof(
-            basic, manoeuvring, list(t), list(delta), list(m["nps"]), u0=m["u0"], ρ=RHO,
-            method="DOP853", rtol=1e-10, atol=1e-10,
+            basic, manoeuvring, list(t[start:]), list(delta), list(nps[start:]), u0=state[3],
+            v0=state[4], r0=state[5], x0=state[0], y0=state[1], ψ0=state[2], ρ=RHO, method="DOP853",
+            rtol=1e-10, atol=1e-10,
         )  # fmt: skip
-        u, v, r, x, y, psi = sol.sol(t)[:6]
-    xp = get_sub_values_from_simulation_result(u, v, r, delta, m["nps"], basic, manoeuvring, ρ=RHO)
+        return sol.sol(t[start:])  # (8, n): u, v, r, x, y, psi, delta, nps
+
+    state = np.array([0.0, 0.0, 0.0, m["u0"], 0.0, 0.0])
+    if "zigzag" not in m:
+        out = run(0, state, m["delta"])
+    else:
+        amplitude, angle, start, parts = m["zigzag"], 0.0, 0, []
+        while start < t.size - 1:
+            delta = angle + ramp(t[start:] - t[start], [0.0], [amplitude - angle], rate)
+            part = run(start, state, delta)
+            psi = part[5]
+            passed = np.nonzero(psi * np.sign(amplitude) >= abs(amplitude))[0]
+            passed = passed[passed > 0]
+            end = int(passed[0]) if passed.size else part.shape[1] - 1
+            parts.append(part[:, : end + (0 if passed.size else 1)])
+            if not passed.size:
+                break
+            state = part[[3, 4, 5, 0, 1, 2], end]  # (x, y, psi, u, v, r)
+            angle, amplitude, start = part[6, end], -amplitude, start + end
+        out = np.concatenate(parts, axis=1)
+    u, v, r, x, y, psi, delta, revs = out
+    xp = get_sub_values_from_simulation_result(u, v, r, delta, revs, basic, manoeuvring, ρ=RHO)
     x_r, x_p, y_r, n_r = (np.asarray(xp[k]) for k in (1, 2, 4, 6))
     force = np.stack([x_p + x_r, y_r, n_r], axis=1)
-    return {
-        "t": t,
-        "state": np.stack([x, y, psi, u, v, r], axis=1),
-        "force": force,
-        "delta": delta,
-        "nps": m["nps"],
-    }
+    state = np.stack([x, y, psi, u, v, r], axis=1)
+    return {"t": t, "state": state, "force": force, "delta": delta, "nps": revs}
 
 
 def table(sims: list[dict], names: list[str], seed: int, position_noise: float, heading_noise: float):
