@@ -330,6 +330,71 @@ def summary(name: str, part: dict) -> str:
     )
 
 
+def exact_floor(seed: int, position_noise: float, heading_noise: float) -> dict:
+    """The one-step loss of :mod:`fhnn.training.planar` with shipmmg's own equations in place of
+    the model, on the imported table: what the data leave for a perfect model (per split, and
+    per state entry)."""
+    import jax.numpy as jnp
+
+    from fhnn.api.planar import import_turning
+    from fhnn.training.planar import _pairs, rate_scales, step_residuals
+
+    b, mp = kvlcc2()
+    plans = manoeuvres(seed)
+    sims = [simulate(m, b, mp) for m in plans]
+    frame = table(sims, [m["name"] for m in plans], seed, position_noise, heading_noise)
+    inertia = b.I_zG + X_G**2 * b.m
+    data = import_turning(frame, mass=b.m, inertia=inertia, x_g=X_G, split=(0.6, 0.2, 0.2), seed=seed)
+    m, xg, half = b.m, b.x_G, 0.5 * RHO * b.L_pp * b.d
+    iz = b.I_zG + b.J_z + xg**2 * m
+
+    def field(s, t, tau):
+        u, v, r = s[3], s[4], s[5]
+        big_u = jnp.sqrt(u**2 + (v - r * xg) ** 2)
+        vd, rd = v / big_u, r * b.L_pp / big_u
+        x_h = (
+            half
+            * big_u**2
+            * (
+                -mp.R_0_dash
+                + mp.X_vv_dash * vd**2
+                + mp.X_vr_dash * vd * rd
+                + mp.X_rr_dash * rd**2
+                + mp.X_vvvv_dash * vd**4
+            )
+        )
+        y_h = (
+            half
+            * big_u**2
+            * (
+                mp.Y_v_dash * vd
+                + mp.Y_r_dash * rd
+                + mp.Y_vvv_dash * vd**3
+                + mp.Y_vvr_dash * vd**2 * rd
+                + mp.Y_vrr_dash * vd * rd**2
+                + mp.Y_rrr_dash * rd**3
+            )
+        )
+        n_h = half * b.L_pp * big_u**2 * (mp.N_v_dash * vd + mp.N_r_dash * rd + mp.N_vvv_dash * vd**3
+                                          + mp.N_vvr_dash * vd**2 * rd + mp.N_vrr_dash * vd * rd**2
+                                          + mp.N_rrr_dash * rd**3)  # fmt: skip
+        x, y, n = x_h + tau[0], y_h + tau[1], n_h + tau[2]
+        du = (x + (m + b.m_y) * v * r + xg * m * r**2) / (m + b.m_x)
+        dv = (xg**2 * m**2 * u * r - n * xg * m + (y - (m + b.m_x) * u * r) * iz) / (
+            iz * (m + b.m_y) - xg**2 * m**2
+        )
+        dr = (n - xg * m * (dv + u * r)) / iz
+        c, sn = jnp.cos(s[2]), jnp.sin(s[2])
+        return jnp.stack([u * c - v * sn, u * sn + v * c, r, du, dv, dr])
+
+    scales = rate_scales(data.splits["train"])
+    out = {}
+    for name in ("train", "val"):
+        res = np.asarray(step_residuals(field, _pairs(data.splits[name]), scales, 1))
+        out[name] = {"loss": float(np.mean(res**2)), "per_entry": np.mean(res**2, axis=0).tolist()}
+    return out
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data-seed", type=int, default=3)
@@ -338,10 +403,14 @@ def main() -> None:
     p.add_argument("--heading-noise", type=float, default=float(np.deg2rad(0.2)))
     p.add_argument("--adam-steps", type=int, default=None, help="fewer Adam steps for a smoke run")
     p.add_argument("--damping-inputs", default="speeds", choices=("speeds", "velocity"))
+    p.add_argument("--floor", action="store_true", help="only the exact MMG equations' one-step loss")
     p.add_argument("--no-track-fit", action="store_true", help="the one-step model only")
     p.add_argument("--track-steps", type=int, default=300, help="L-BFGS iterations of the track fit")
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/shipmmg_seedN.json)")
     args = p.parse_args()
+    if args.floor:
+        print(json.dumps(exact_floor(args.data_seed, args.position_noise, args.heading_noise)))
+        return
     report = run(
         args.data_seed, args.damping, args.position_noise, args.heading_noise, args.adam_steps,
         not args.no_track_fit, args.track_steps, args.damping_inputs,
