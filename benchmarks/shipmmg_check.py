@@ -49,6 +49,8 @@ TARGETS = {"total_inertia": 0.03, "added_mass": 0.05, "rmse_pos_60": 0.5, "rmse_
 PUBLISHED_NRMSE = 0.06
 DT = 0.05
 DURATION = 90.0
+#: The model's rudder rate [rad/s] (15.8 °/s full scale, Froude-scaled).
+RUDDER_RATE = float(np.deg2rad(2.32))
 HORIZON = 60.0
 
 
@@ -93,7 +95,7 @@ def manoeuvres(seed: int) -> list[dict]:
     """15 manoeuvres, their rudder [rad] and propeller [rps] on a 0.05 s grid, drawn from ``seed``."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, DURATION + DT / 2, DT)
-    rate = np.deg2rad(2.32)  # the model's rudder rate (15.8 °/s full scale, Froude-scaled)
+    rate = RUDDER_RATE
     out = []
     for k in range(4):  # turning circles
         angle = np.deg2rad(rng.uniform(10, 35)) * (1 if k % 2 else -1)
@@ -136,7 +138,6 @@ def simulate(m: dict, basic, manoeuvring) -> dict:
     from shipmmg.mmg_3dof import get_sub_values_from_simulation_result, simulate_mmg_3dof
 
     t, nps = m["t"], m["nps"]
-    rate = np.deg2rad(2.32)
 
     def run(start: int, state: np.ndarray, delta: np.ndarray) -> np.ndarray:
         sol = simulate_mmg_3dof(
@@ -152,7 +153,7 @@ def simulate(m: dict, basic, manoeuvring) -> dict:
     else:
         amplitude, angle, start, parts = m["zigzag"], 0.0, 0, []
         while start < t.size - 1:
-            delta = angle + ramp(t[start:] - t[start], [0.0], [amplitude - angle], rate)
+            delta = angle + ramp(t[start:] - t[start], [0.0], [amplitude - angle], RUDDER_RATE)
             part = run(start, state, delta)
             psi = part[5]
             passed = np.nonzero(psi * np.sign(amplitude) >= abs(amplitude))[0]
@@ -204,8 +205,8 @@ def judge(model, imported, truth: dict[str, dict]) -> dict:
     from fhnn.evaluation.planar import forecast
 
     test = imported.splits["test"]
-    longest = float(np.min(test.t[np.arange(test.t.shape[0]), test.lengths - 1] - test.t[:, 0]))
-    horizon = float(np.floor(longest))
+    shortest = float(np.min(test.t[np.arange(test.t.shape[0]), test.lengths - 1] - test.t[:, 0]))
+    horizon = float(np.floor(shortest))
     pred, ok = forecast(model, test, horizon)
     per_track, errors60 = {}, []
     for k, name in enumerate(imported.params["ids"]["test"]):
@@ -247,20 +248,17 @@ def run(
     track_steps: int,
     damping_inputs: str = "speeds",
 ) -> dict:
-    from fhnn.api.planar import import_turning, train_turning
+    from fhnn.api.planar import train_turning
     from fhnn.models.planar import PlanarModelConfig
     from fhnn.training.planar import PlanarTrainConfig
     from fhnn.training.planar_tracks import PlanarTrackConfig, fit_planar_tracks
 
     start = time.perf_counter()
-    basic, manoeuvring = kvlcc2()
-    plans = manoeuvres(seed)
-    sims = [simulate(m, basic, manoeuvring) for m in plans]
-    names = [m["name"] for m in plans]
-    print(f"simulated {len(sims)} manoeuvres in {time.perf_counter() - start:.0f} s", flush=True)
-    frame = table(sims, names, seed, position_noise, heading_noise)
-    inertia = basic.I_zG + X_G**2 * basic.m  # about midship, the tracked point
-    imported = import_turning(frame, mass=basic.m, inertia=inertia, x_g=X_G, split=(0.6, 0.2, 0.2), seed=seed)
+    basic, imported, truth = imported_table(seed, position_noise, heading_noise)
+    inertia = imported.inertia
+    print(
+        f"simulated and imported {len(truth)} manoeuvres in {time.perf_counter() - start:.0f} s", flush=True
+    )
 
     def progress(phase: str, step: int, steps: int, loss: float) -> None:
         if step % 500 == 0 or step == steps:
@@ -269,7 +267,6 @@ def run(
     training = PlanarTrainConfig() if adam_steps is None else PlanarTrainConfig(adam_steps=adam_steps)
     model = PlanarModelConfig(damping=damping, damping_inputs=damping_inputs)
     fit = train_turning(imported, model=model, training=training, progress=progress)
-    truth = dict(zip(names, sims, strict=True))
     report = {"one_step": judged(fit.model, imported, truth, basic, inertia)}
     report["one_step"].update(train_seconds=fit.seconds, val_loss=fit.val_loss)
     if track_fit:
@@ -292,6 +289,21 @@ def run(
         wall_seconds=time.perf_counter() - start,
     )
     return report
+
+
+def imported_table(seed: int, position_noise: float, heading_noise: float):
+    """The seed's manoeuvres simulated, given as a table and imported: ``(basic parameters,
+    data set, {name: simulation})``; the tracked point is midship, its yaw inertia about it."""
+    from fhnn.api.planar import import_turning
+
+    basic, manoeuvring = kvlcc2()
+    plans = manoeuvres(seed)
+    sims = [simulate(m, basic, manoeuvring) for m in plans]
+    names = [m["name"] for m in plans]
+    frame = table(sims, names, seed, position_noise, heading_noise)
+    inertia = basic.I_zG + X_G**2 * basic.m
+    data = import_turning(frame, mass=basic.m, inertia=inertia, x_g=X_G, split=(0.6, 0.2, 0.2), seed=seed)
+    return basic, data, dict(zip(names, sims, strict=True))
 
 
 def judged(model, imported, truth: dict, basic, inertia: float) -> dict:
@@ -336,15 +348,10 @@ def exact_floor(seed: int, position_noise: float, heading_noise: float) -> dict:
     per state entry)."""
     import jax.numpy as jnp
 
-    from fhnn.api.planar import import_turning
     from fhnn.training.planar import _pairs, rate_scales, step_residuals
 
-    b, mp = kvlcc2()
-    plans = manoeuvres(seed)
-    sims = [simulate(m, b, mp) for m in plans]
-    frame = table(sims, [m["name"] for m in plans], seed, position_noise, heading_noise)
-    inertia = b.I_zG + X_G**2 * b.m
-    data = import_turning(frame, mass=b.m, inertia=inertia, x_g=X_G, split=(0.6, 0.2, 0.2), seed=seed)
+    b, data, _ = imported_table(seed, position_noise, heading_noise)
+    _, mp = kvlcc2()
     m, xg, half = b.m, b.x_G, 0.5 * RHO * b.L_pp * b.d
     iz = b.I_zG + b.J_z + xg**2 * m
 
@@ -398,7 +405,8 @@ def exact_floor(seed: int, position_noise: float, heading_noise: float) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data-seed", type=int, default=3)
-    p.add_argument("--damping", default="full", choices=("diagonal", "full"))
+    # the diagonal, chosen on seed 1 (docs/design/turning.md) and fhnn's default
+    p.add_argument("--damping", default="diagonal", choices=("diagonal", "full"))
     p.add_argument("--position-noise", type=float, default=0.02)
     p.add_argument("--heading-noise", type=float, default=float(np.deg2rad(0.2)))
     p.add_argument("--adam-steps", type=int, default=None, help="fewer Adam steps for a smoke run")

@@ -42,11 +42,10 @@ def test_windows_cover_each_trajectory_to_its_last_sample(data) -> None:
         make_windows(train, 40, observed_pose(data, train))
 
 
-def test_the_true_equations_leave_only_rk4_s_error_in_the_pose() -> None:
-    clean = simulate_planar("turning_vortex", n_traj=10, duration=3.0, test_duration=3.0, dt=0.1, seed=2)
-    train = clean.splits["train"]
-    w = make_windows(train, window_size(train, 3.0), observed_pose(clean, train))
-    eom = clean.truth().equations()
+def test_the_true_equations_leave_only_rk4_s_error_in_the_pose(data) -> None:
+    train = data.splits["train"]  # noise-free: the observations are the truth
+    w = make_windows(train, window_size(train, 3.0), observed_pose(data, train))
+    eom = data.truth().equations()
     coarse, fine = (pose_residuals(eom, w.start, w, (1.0, 1.0), n) for n in (1, 4))
     assert float(jnp.max(jnp.abs(fine))) < 1e-7
     assert float(jnp.max(jnp.abs(coarse))) > 20 * float(jnp.max(jnp.abs(fine)))  # RK4: 4⁴ = 256 smaller

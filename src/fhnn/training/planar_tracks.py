@@ -43,7 +43,7 @@ class PlanarTrackConfig(Config):
     Attributes:
         window: each window's length [s] (its sample count is the nearest to it at the split's
             median sample step, at least 3).
-        steps: L-BFGS iterations (zoom line search, memory 20).
+        steps: L-BFGS iterations (memory 20, Armijo backtracking from a unit step).
         substeps: RK4 steps per sample interval.
     """
 
@@ -169,31 +169,32 @@ def pose_residuals(
     return jnp.concatenate([diff[..., :2] / scale[0], heading[..., None] / scale[1]], axis=-1)
 
 
-def _lbfgs(objective, x, steps: int, memory: int = 20) -> list:
+def _lbfgs(objective, x, steps: int, memory: int = 20) -> tuple[object, list[float]]:
     """``steps`` L-BFGS iterations on ``objective(x)`` with an Armijo backtracking line search
     (from a unit step, halving, at most 30 times) run from Python: two compiled programs, the
     value and gradient and the value alone, where optax's zoom line search traces the objective
-    inside its loop again (four times the compilation here). Returns the objective's values at
-    the accepted iterates, the last entry being the final ``x``; stops early when no step
-    lowers the objective."""
+    inside its loop again (four times the compilation here). Returns the final ``x`` and the
+    objective's values at the accepted iterates; stops early when no step lowers the
+    objective."""
     value_and_grad = eqx.filter_jit(jax.value_and_grad(objective))
     value_only = eqx.filter_jit(objective)
     direction = optax.scale_by_lbfgs(memory_size=memory)
     update = eqx.filter_jit(direction.update)
     state = direction.init(x)
-    history: list = []
+    history: list[float] = []
     value, grad = value_and_grad(x)
     for _ in range(steps):
         d, state = update(grad, state, x)
         leaves = zip(jax.tree_util.tree_leaves(grad), jax.tree_util.tree_leaves(d), strict=True)
         slope = float(sum(jnp.vdot(a, b) for a, b in leaves))
-        if not (np.isfinite(float(value)) and slope > 0):
+        current = float(value)
+        if not (np.isfinite(current) and slope > 0):
             break
         alpha, accepted = 1.0, None
         for _ in range(30):
             trial = jax.tree_util.tree_map(lambda a, b, step=alpha: a - step * b, x, d)
             v = float(value_only(trial))
-            if np.isfinite(v) and v <= float(value) - 1e-4 * alpha * slope:
+            if np.isfinite(v) and v <= current - 1e-4 * alpha * slope:
                 accepted = trial
                 break
             alpha *= 0.5
@@ -202,7 +203,7 @@ def _lbfgs(objective, x, steps: int, memory: int = 20) -> list:
         x = accepted
         value, grad = value_and_grad(x)
         history.append(float(value))
-    return [*history, x]
+    return x, history
 
 
 def fit_planar_tracks(
@@ -245,8 +246,7 @@ def fit_planar_tracks(
 
     before = float(val_misfit(params))
     x = (params, jnp.zeros_like(w_train.start))
-    history = _lbfgs(objective, x, config.steps)
-    x = history.pop()
+    x, history = _lbfgs(objective, x, config.steps)
     after = float(val_misfit(x[0]))
     kept = bool(np.isfinite(after) and after < before)
     chosen = x[0] if kept else params
