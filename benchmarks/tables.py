@@ -435,7 +435,7 @@ def render_turning_table(record: dict[str, Any]) -> str:
 def render_shipmmg(record: dict[str, Any]) -> str:
     """The 3-DOF model against KVLCC2 in shipmmg: the one-step model and the track fit beside the
     targets."""
-    stages = [(name, record[name]) for name in ("one_step", "track_fit") if name in record]
+    stages = [(n, part) for n, part in record.items() if n == "one_step" or n.startswith("track_fit")]
     targets = record["targets"]
     pos, heading = targets["rmse_pos_60"], targets["rmse_heading_60_deg"]
     measures = [
@@ -452,6 +452,8 @@ def render_shipmmg(record: dict[str, Any]) -> str:
         ("held-out RMSE(pos) over 1-60 s [m]", lambda r: _g(r["forecast"]["rmse_pos_60"]), _g(pos)),
         ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]),
          _g(heading)),
+        ("validation RMSE(pos) over 1-60 s, against the observations [m]",
+         lambda r: _g(r["val_forecast"]["rmse_pos_60"]) if "val_forecast" in r else "—", ""),
         ("normalised RMSE over the whole track", lambda r: _pct(r["forecast"]["nrmse_track"]),
          f"published: {_pct(record['published_nrmse'])}"),
         ("seconds", lambda r: f"{r.get('train_seconds', r.get('seconds', float('nan'))):.0f}", ""),
