@@ -346,7 +346,9 @@ def render_calibration(record: dict[str, Any]) -> str:
     ]
     caption = (
         f"*{n} data sets ({record['seed_role']} seeds {record['data_seeds'][0]}–"
-        f"{record['data_seeds'][-1]}), one `fhnn train` run each and its Laplace intervals at the "
+        f"{record['data_seeds'][-1]}"
+        + (", positions only: no known thrust" if record.get("no_forcing") else ", with the known thrust")
+        + "), one `fhnn train` run each and its Laplace intervals at the "
         f"eigenvalue floor {float(floor):g} (`fhnn inspect`'s); a 90 % interval should hold the true "
         "value in about 9 of 10, and |z| (the error over the interval's sd) has median 0.67 when the "
         "intervals are honest; *marked weak*: its variance mostly from directions the data barely "

@@ -28,7 +28,7 @@ def test_own_data_example_runs_from_table_to_forecast_band(tmp_path: Path) -> No
     assert steps == ["import", "info", "train", "inspect", "predict"]
     table = pacsv.read_csv(out / "track.csv").column_names
     assert table == ["traj_id", "t", "x", "y", "Fx", "Fy"]  # positions and the known thrust only
-    assert sorted(p.name for p in (out / "ens").iterdir() if p.is_dir()) == ["seed-0", "seed-1", "seed-2"]
+    assert sorted(p.name for p in (out / "ens").iterdir() if p.is_dir()) == ["seed-0", "seed-1"]
     coef = pacsv.read_csv(out / "ens" / "coefficients.csv").to_pydict()
     assert {"m_ax_lo", "m_ax_hi", "c_l_lo", "c_l_hi"} <= set(coef)
     with xr.open_dataset(out / "ens" / "flow.nc", engine="h5netcdf") as flow:
