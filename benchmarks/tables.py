@@ -434,6 +434,13 @@ def render_turning_table(record: dict[str, Any]) -> str:
     return caption + "\n\n" + _table(header, rows)
 
 
+def _track_fit_cell(part: dict[str, Any]) -> str:
+    """A track fit's window and whether its guard kept it (``—`` for the one-step model)."""
+    if "kept" not in part:
+        return "—"
+    return f"{part.get('window', 10):g} s, {'kept' if part['kept'] else 'rejected'}"
+
+
 def render_shipmmg(record: dict[str, Any]) -> str:
     """The 3-DOF model against KVLCC2 in shipmmg: the one-step model and the track fit beside the
     targets."""
@@ -458,6 +465,7 @@ def render_shipmmg(record: dict[str, Any]) -> str:
          lambda r: _g(r["val_forecast"]["rmse_pos_60"]) if "val_forecast" in r else "—", ""),
         ("normalised RMSE over the whole track", lambda r: _pct(r["forecast"]["nrmse_track"]),
          f"published: {_pct(record['published_nrmse'])}"),
+        ("track fit: window, guard", _track_fit_cell, ""),
         ("seconds", lambda r: f"{r.get('train_seconds', r.get('seconds', float('nan'))):.0f}", ""),
     ]  # fmt: skip
     header = ["measure", *[f"`{n}`" for n, _ in stages], "target"]
