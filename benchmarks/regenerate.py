@@ -48,6 +48,9 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
     "Are the intervals honest?": {
         "laplace_exact.py": ["laplace_exact"],
         "calibration.py --role confirming --method laplace": ["calibration_laplace_confirming"],
+        "calibration.py --role confirming --method laplace --no-forcing": [
+            "calibration_laplace_confirming_noforce"
+        ],
     },
     "Does it learn a body that turns?": {
         "turning.py --data-seed 3": ["turning_seed3"],
