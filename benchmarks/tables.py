@@ -340,7 +340,7 @@ def render_calibration(record: dict[str, Any]) -> str:
             f"{round(r['weak'] * n)} of {n}",
             _pct(r["median_rel_width"]),
             _pct(r["median_rel_error"]),
-            f"{r['median_z']:.2f}" if np.isfinite(r["median_z"]) else "withheld",
+            f"{r['median_z']:.2f}" if math.isfinite(r["median_z"]) else "withheld",
         ]
         for name, r in table.items()
     ]
