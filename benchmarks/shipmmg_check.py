@@ -244,10 +244,9 @@ def run(
     position_noise: float,
     heading_noise: float,
     adam_steps: int | None,
-    track_fit: bool,
+    windows: tuple[float, ...],
     track_steps: int,
     damping_inputs: str = "speeds",
-    windows: tuple[float, ...] = (10.0,),
 ) -> dict:
     from fhnn.api.planar import train_turning
     from fhnn.models.planar import PlanarModelConfig
@@ -270,7 +269,7 @@ def run(
     fit = train_turning(imported, model=model, training=training, progress=progress)
     report = {"one_step": judged(fit.model, imported, truth, basic, inertia)}
     report["one_step"].update(train_seconds=fit.seconds, val_loss=fit.val_loss)
-    for window in windows if track_fit else ():
+    for window in windows:  # none: the one-step model only
         tracks = fit_planar_tracks(fit.model, imported, PlanarTrackConfig(steps=track_steps, window=window))
         print(
             f"  track fit, {window:g} s windows: val misfit {tracks.val_before:.3g} -> "
@@ -447,8 +446,8 @@ def main() -> None:
         return
     report = run(
         args.data_seed, args.damping, args.position_noise, args.heading_noise, args.adam_steps,
-        not args.no_track_fit, args.track_steps, args.damping_inputs,
-        tuple(float(w) for w in args.track_windows.split(",")),
+        () if args.no_track_fit else tuple(float(w) for w in args.track_windows.split(",")),
+        args.track_steps, args.damping_inputs,
     )  # fmt: skip
     for name in [k for k in report if k == "one_step" or k.startswith("track_fit")]:
         print(summary(name, report[name]))

@@ -82,10 +82,10 @@ def main() -> None:
     )
     fhnn("info", str(out / "track.h5"))
 
-    # 3. an ensemble of three runs, default settings (resumed if it exists)
+    # 3. an ensemble of three runs (two with --fast), default settings (resumed if it exists)
     fast = ["--steps", "20", "--set", "model.width=8", "--set", "train.val_every=10"] if args.fast else []
     fast += ["--set", "train.track_steps=2"] if args.fast else []
-    members = "2" if args.fast else "3"  # two are the least an ensemble's intervals need
+    members = "2" if args.fast else "3"  # two: the fewest an ensemble's intervals need
     fhnn("train", str(out / "track.h5"), "-o", str(out / "ens"), "--seeds", members, "-q", *fast)
 
     # 4. what was learned, with intervals; coefficients.csv and flow.nc for other tools
