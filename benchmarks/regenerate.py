@@ -57,7 +57,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "turning.py --data-seed 4": ["turning_seed4"],
         "station_keeping.py --data-seed 3": ["station_keeping_seed3"],
         "shipmmg_check.py --data-seed 3": ["shipmmg_seed3"],
-        "shipmmg_check.py --data-seed 3 --controls": ["shipmmg_controls_seed3"],
+        "shipmmg_check.py --data-seed 3 --controls --no-track-fit": ["shipmmg_controls_seed3"],
     },
     "How fast?": {
         "quick_reproduction.py": ["quick_reproduction"],

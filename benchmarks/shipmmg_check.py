@@ -263,33 +263,47 @@ def run(
     damping_inputs: str = "speeds",
     controls: bool = False,
 ) -> dict:
+    """The check's stages: the one-step model (``one_step``, or ``controls`` with a learned
+    actuator map), then one track fit from it per window in ``windows`` (``track_fit`` if one,
+    else ``track_fit_<W>s``; prefixed ``controls_`` with the map)."""
     from fhnn.api.planar import train_turning
+    from fhnn.api.planar_controls import train_controlled
     from fhnn.training.planar import PlanarTrainConfig
     from fhnn.training.planar_tracks import PlanarTrackConfig, fit_planar_tracks
 
     start = time.perf_counter()
     basic, imported, truth = imported_table(seed, position_noise, heading_noise, controls)
-    if controls:
-        return controls_run(imported, truth, adam_steps, model_config(damping, damping_inputs), start)
-    inertia = imported.inertia
     print(
         f"simulated and imported {len(truth)} manoeuvres in {time.perf_counter() - start:.0f} s", flush=True
     )
-
     training = PlanarTrainConfig() if adam_steps is None else PlanarTrainConfig(adam_steps=adam_steps)
     model = model_config(damping, damping_inputs)
-    fit = train_turning(imported, model=model, training=training, progress=progress)
-    report = {"one_step": judged(fit.model, imported, truth, basic, inertia)}
-    report["one_step"].update(train_seconds=fit.seconds, val_loss=fit.val_loss)
+    if controls:  # no masses: such data do not fix them
+        dataset, prefix = imported.dataset, "controls"
+        fit = train_controlled(imported, model=model, training=training, progress=progress)
+
+        def judged_model(m) -> dict:
+            return {"forecast": judge(m, dataset, truth), "val_forecast": val_forecast(m, dataset)}
+    else:
+        dataset, prefix = imported, ""
+        fit = train_turning(imported, model=model, training=training, progress=progress)
+
+        def judged_model(m) -> dict:
+            return judged(m, imported, truth, basic, imported.inertia)
+
+    first = prefix or "one_step"
+    report = {first: judged_model(fit.model)}
+    report[first].update(train_seconds=fit.seconds, val_loss=fit.val_loss)
     for window in windows:  # none: the one-step model only
-        tracks = fit_planar_tracks(fit.model, imported, PlanarTrackConfig(steps=track_steps, window=window))
+        tracks = fit_planar_tracks(fit.model, dataset, PlanarTrackConfig(steps=track_steps, window=window))
         print(
             f"  track fit, {window:g} s windows: val misfit {tracks.val_before:.3g} -> "
             f"{tracks.val_after:.3g}, kept {tracks.kept}",
             flush=True,
         )
         name = "track_fit" if len(windows) == 1 else f"track_fit_{window:g}s"
-        report[name] = judged(tracks.model, imported, truth, basic, inertia)
+        name = f"{prefix}_{name}" if prefix else name
+        report[name] = judged_model(tracks.model)
         report[name].update(
             window=window,
             seconds=tracks.seconds,
@@ -300,8 +314,8 @@ def run(
             objective_first_last=tracks.history[:1] + tracks.history[-1:],
         )
     report.update(
-        split=imported.params["ids"],
-        noise_estimate=imported.params["noise"],
+        split=dataset.params["ids"],
+        noise_estimate=dataset.params["noise"],
         wall_seconds=time.perf_counter() - start,
     )
     return report
@@ -316,29 +330,6 @@ def model_config(damping: str, damping_inputs: str):
     from fhnn.models.planar import PlanarModelConfig
 
     return PlanarModelConfig(damping=damping, damping_inputs=damping_inputs)
-
-
-def controls_run(data, truth: dict, adam_steps: int | None, model, start: float) -> dict:
-    """The learned actuator map: only the rudder angle and propeller speed are given
-    (:mod:`fhnn.api.planar_controls`); held-out and validation forecasts (no masses: such data do
-    not fix them)."""
-    from fhnn.api.planar_controls import train_controlled
-    from fhnn.training.planar import PlanarTrainConfig
-
-    training = PlanarTrainConfig() if adam_steps is None else PlanarTrainConfig(adam_steps=adam_steps)
-    fit = train_controlled(data, model=model, training=training, progress=progress)
-    part = {
-        "forecast": judge(fit.model, data.dataset, truth),
-        "val_forecast": val_forecast(fit.model, data.dataset),
-        "train_seconds": fit.seconds,
-        "val_loss": fit.val_loss,
-    }
-    return {
-        "controls": part,
-        "split": data.dataset.params["ids"],
-        "noise_estimate": data.dataset.params["noise"],
-        "wall_seconds": time.perf_counter() - start,
-    }
 
 
 def imported_table(seed: int, position_noise: float, heading_noise: float, controls: bool = False):
@@ -404,7 +395,7 @@ def judged(model, imported, truth: dict, basic, inertia: float) -> dict:
 def controls_summary(part: dict) -> str:
     f = part["forecast"]
     return (
-        f"controls only: held-out RMSE(pos)@60s {f['rmse_pos_60']:.3g} m (target "
+        f"controls only, held-out RMSE(pos)@60s {f['rmse_pos_60']:.3g} m (target "
         f"{CONTROLS_TARGETS['rmse_pos_60']}), heading {f['rmse_heading_60_deg']:.3g}°; normalised RMSE "
         f"{f['nrmse_track']:.2%} (published {PUBLISHED_NRMSE:.0%} over 200 s at 5 % noise); validation "
         f"RMSE(pos)@60s {part['val_forecast']['rmse_pos_60']:.3g} m against the observations"
@@ -519,8 +510,8 @@ def main() -> None:
     )  # fmt: skip
     for name in [k for k in report if k == "one_step" or k.startswith("track_fit")]:
         print(summary(name, report[name]))
-    if args.controls:
-        print(controls_summary(report["controls"]))
+    for name in [k for k in report if k.startswith("controls")]:
+        print(f"{name}: {controls_summary(report[name])}")
     record = {
         **stamp(),
         "data_seed": args.data_seed,

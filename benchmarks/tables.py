@@ -443,29 +443,33 @@ def _track_fit_cell(part: dict[str, Any]) -> str:
 
 def render_shipmmg_controls(record: dict[str, Any]) -> str:
     """The 3-DOF model with a learned actuator map against KVLCC2 in shipmmg: only the rudder
-    angle and the propeller speed given; forecasts per held-out manoeuvre beside the target."""
-    part, target = record["controls"], record["targets"]["rmse_pos_60"]
-    tracks = part["forecast"]["tracks"]
-    header = ["measure", *[f"`{name}`" for name in tracks], "all held out", "target"]
-
-    def row(label: str, key: str, fmt, goal: str = "") -> list[str]:
-        return [label, *[fmt(t[key]) for t in tracks.values()], fmt(part["forecast"][key]), goal]
-
-    rows = [
-        row("RMSE(pos) over 1-60 s [m]", "rmse_pos_60", _g, _g(target)),
-        row("RMSE(heading) over 1-60 s [°]", "rmse_heading_60_deg", _g),
-        row("normalised RMSE over the whole track", "nrmse_track", _pct,
-            f"published: {_pct(record['published_nrmse'])}"),
+    angle and the propeller speed given; the one-step model and any track fits, forecasts per
+    held-out manoeuvre, beside the target."""
+    stages = [(n, part) for n, part in record.items() if n.startswith("controls")]
+    target = record["targets"]["rmse_pos_60"]
+    names = list(stages[0][1]["forecast"]["tracks"])
+    measures = [
+        ("held-out RMSE(pos) over 1-60 s [m]", lambda r: _g(r["forecast"]["rmse_pos_60"]), _g(target)),
+        *[
+            (f"… `{n}`", lambda r, n=n: _g(r["forecast"]["tracks"][n]["rmse_pos_60"]), "")
+            for n in names
+        ],
+        ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]), ""),
+        ("validation RMSE(pos) over 1-60 s, against the observations [m]",
+         lambda r: _g(r["val_forecast"]["rmse_pos_60"]), ""),
+        ("normalised RMSE over the whole track", lambda r: _pct(r["forecast"]["nrmse_track"]),
+         f"published: {_pct(record['published_nrmse'])}"),
+        ("track fit: window, guard", _track_fit_cell, ""),
+        ("seconds", lambda r: f"{r.get('train_seconds', r.get('seconds', float('nan'))):.0f}", ""),
     ]  # fmt: skip
-    val = part["val_forecast"]
+    header = ["measure", *[f"`{n}`" for n, _ in stages], "target"]
+    rows = [[label, *[fn(r) for _, r in stages], goal] for label, fn, goal in measures]
     caption = (
         f"*15 manoeuvres of 90 s, noise {_g(record['position_noise'])} m on x, y and "
         f"{_g(record['heading_noise'])} rad on the heading, samples 0.4-0.6 s apart; the table logs the "
-        "rudder angle and the propeller speed, no force; damping "
-        f"`{record['damping']}`. Forecasts from each held-out manoeuvre's first estimated state under "
-        "its logged controls, scored against shipmmg's noise-free trajectory. Validation manoeuvres, "
-        f"against their observations: RMSE(pos) {_g(val['rmse_pos_60'])} m, heading "
-        f"{_g(val['rmse_heading_60_deg'])}°. Training took {part['train_seconds']:.0f} s.*"
+        f"rudder angle and the propeller speed, no force; damping `{record['damping']}`. Forecasts from "
+        "each held-out manoeuvre's first estimated state under its logged controls, scored against "
+        "shipmmg's noise-free trajectory; the validation manoeuvres' against their observations.*"
     )
     return caption + "\n\n" + _table(header, rows)
 
