@@ -58,6 +58,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "station_keeping.py --data-seed 3": ["station_keeping_seed3"],
         "shipmmg_check.py --data-seed 3": ["shipmmg_seed3"],
         "shipmmg_check.py --data-seed 3 --controls --no-track-fit": ["shipmmg_controls_seed3"],
+        "shipmmg_check.py --data-seed 5 --controls --no-track-fit": ["shipmmg_controls_seed5"],
     },
     "How fast?": {
         "quick_reproduction.py": ["quick_reproduction"],
