@@ -262,6 +262,7 @@ def run(
     track_steps: int,
     damping_inputs: str = "speeds",
     controls: bool = False,
+    width: int | None = None,
 ) -> dict:
     """The check's stages: the one-step model (``one_step``, or ``controls`` with a learned
     actuator map), then one track fit from it per window in ``windows`` (``track_fit`` if one,
@@ -277,7 +278,7 @@ def run(
         f"simulated and imported {len(truth)} manoeuvres in {time.perf_counter() - start:.0f} s", flush=True
     )
     training = PlanarTrainConfig() if adam_steps is None else PlanarTrainConfig(adam_steps=adam_steps)
-    model = model_config(damping, damping_inputs)
+    model = model_config(damping, damping_inputs, width)
     if controls:  # no masses: such data do not fix them
         dataset, prefix = imported.dataset, "controls"
         fit = train_controlled(imported, model=model, training=training, progress=progress)
@@ -326,10 +327,11 @@ def progress(phase: str, step: int, steps: int, loss: float) -> None:
         print(f"  {phase} {step}/{steps} train loss {loss:.3e}", flush=True)
 
 
-def model_config(damping: str, damping_inputs: str):
+def model_config(damping: str, damping_inputs: str, width: int | None = None):
     from fhnn.models.planar import PlanarModelConfig
 
-    return PlanarModelConfig(damping=damping, damping_inputs=damping_inputs)
+    extra = {} if width is None else {"width": width}
+    return PlanarModelConfig(damping=damping, damping_inputs=damping_inputs, **extra)
 
 
 def imported_table(seed: int, position_noise: float, heading_noise: float, controls: bool = False):
@@ -483,7 +485,8 @@ def main() -> None:
     p.add_argument("--damping", default="diagonal", choices=("diagonal", "full"))
     p.add_argument("--position-noise", type=float, default=0.02)
     p.add_argument("--heading-noise", type=float, default=float(np.deg2rad(0.2)))
-    p.add_argument("--adam-steps", type=int, default=None, help="fewer Adam steps for a smoke run")
+    p.add_argument("--adam-steps", type=int, default=None, help="Adam steps (default: fhnn's)")
+    p.add_argument("--width", type=int, default=None, help="the nets' width (default: fhnn's)")
     p.add_argument("--damping-inputs", default="speeds", choices=("speeds", "velocity"))
     p.add_argument(
         "--controls",
@@ -506,7 +509,7 @@ def main() -> None:
     report = run(
         args.data_seed, args.damping, args.position_noise, args.heading_noise, args.adam_steps,
         () if args.no_track_fit else tuple(float(w) for w in args.track_windows.split(",")),
-        args.track_steps, args.damping_inputs, args.controls,
+        args.track_steps, args.damping_inputs, args.controls, args.width,
     )  # fmt: skip
     for name in [k for k in report if k == "one_step" or k.startswith("track_fit")]:
         print(summary(name, report[name]))
@@ -521,6 +524,7 @@ def main() -> None:
         "position_noise": args.position_noise,
         "heading_noise": args.heading_noise,
         "adam_steps": args.adam_steps,
+        "width": args.width,
         "forcing": "rudder and propeller" if args.controls else "forces",
         "targets": CONTROLS_TARGETS if args.controls else TARGETS,
         "published_nrmse": PUBLISHED_NRMSE,
