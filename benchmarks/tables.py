@@ -467,7 +467,8 @@ def render_shipmmg_controls(record: dict[str, Any]) -> str:
     caption = (
         f"*15 manoeuvres of 90 s, noise {_g(record['position_noise'])} m on x, y and "
         f"{_g(record['heading_noise'])} rad on the heading, samples 0.4-0.6 s apart; the table logs the "
-        f"rudder angle and the propeller speed, no force; damping `{record['damping']}`. Forecasts from "
+        f"rudder angle and the propeller speed, no force; damping `{record['damping']}`, nets of width "
+        f"{record.get('width') or 'the default (32)'}. Forecasts from "
         "each held-out manoeuvre's first estimated state under its logged controls, scored against "
         "shipmmg's noise-free trajectory; the validation manoeuvres' against their observations.*"
     )
