@@ -394,25 +394,22 @@ def judged(model, imported, truth: dict, basic, inertia: float) -> dict:
     }
 
 
-def controls_summary(part: dict) -> str:
+def summary(name: str, part: dict, targets: dict) -> str:
+    """One stage's figures beside ``targets`` (:data:`TARGETS`, or :data:`CONTROLS_TARGETS`
+    for a stage without masses)."""
     f = part["forecast"]
+    masses = ""
+    if "added_mass" in part:
+        added = ", ".join(f"{k} {v['rel_error']:.1%}" for k, v in part["added_mass"].items())
+        totals = ", ".join(f"{k} {v['rel_error']:.1%}" for k, v in part["total_inertia"].items())
+        masses = (
+            f"added masses {added} (target {targets['added_mass']:.0%} for m_22, m_66); total inertias "
+            f"{totals} (target {targets['total_inertia']:.0%}); "
+        )
+    heading = f" (target {targets['rmse_heading_60_deg']})" if "rmse_heading_60_deg" in targets else ""
     return (
-        f"controls only, held-out RMSE(pos)@60s {f['rmse_pos_60']:.3g} m (target "
-        f"{CONTROLS_TARGETS['rmse_pos_60']}), heading {f['rmse_heading_60_deg']:.3g}°; normalised RMSE "
-        f"{f['nrmse_track']:.2%} (published {PUBLISHED_NRMSE:.0%} over 200 s at 5 % noise); validation "
-        f"RMSE(pos)@60s {part['val_forecast']['rmse_pos_60']:.3g} m against the observations"
-    )
-
-
-def summary(name: str, part: dict) -> str:
-    masses = ", ".join(f"{k} {v['rel_error']:.1%}" for k, v in part["added_mass"].items())
-    totals = ", ".join(f"{k} {v['rel_error']:.1%}" for k, v in part["total_inertia"].items())
-    f = part["forecast"]
-    return (
-        f"{name}: added masses {masses} (target {TARGETS['added_mass']:.0%} for m_22, m_66); total inertias "
-        f"{totals} (target {TARGETS['total_inertia']:.0%}); held-out RMSE(pos)@60s {f['rmse_pos_60']:.3g} m "
-        f"(target {TARGETS['rmse_pos_60']}), heading {f['rmse_heading_60_deg']:.3g}° "
-        f"(target {TARGETS['rmse_heading_60_deg']}); normalised RMSE {f['nrmse_track']:.2%} "
+        f"{name}: {masses}held-out RMSE(pos)@60s {f['rmse_pos_60']:.3g} m (target {targets['rmse_pos_60']}), "
+        f"heading {f['rmse_heading_60_deg']:.3g}°{heading}; normalised RMSE {f['nrmse_track']:.2%} "
         f"(published {PUBLISHED_NRMSE:.0%} over 200 s at 5 % noise); validation RMSE(pos)@60s "
         f"{part['val_forecast']['rmse_pos_60']:.3g} m against the observations"
     )
@@ -511,10 +508,9 @@ def main() -> None:
         () if args.no_track_fit else tuple(float(w) for w in args.track_windows.split(",")),
         args.track_steps, args.damping_inputs, args.controls, args.width,
     )  # fmt: skip
-    for name in [k for k in report if k == "one_step" or k.startswith("track_fit")]:
-        print(summary(name, report[name]))
-    for name in [k for k in report if k.startswith("controls")]:
-        print(f"{name}: {controls_summary(report[name])}")
+    targets = CONTROLS_TARGETS if args.controls else TARGETS
+    for name in [k for k in report if k in ("one_step", "controls") or "track_fit" in k]:
+        print(summary(name, report[name], targets))
     record = {
         **stamp(),
         "data_seed": args.data_seed,
@@ -526,7 +522,7 @@ def main() -> None:
         "adam_steps": args.adam_steps,
         "width": args.width,
         "forcing": "rudder and propeller" if args.controls else "forces",
-        "targets": CONTROLS_TARGETS if args.controls else TARGETS,
+        "targets": targets,
         "published_nrmse": PUBLISHED_NRMSE,
         **report,
     }

@@ -441,38 +441,58 @@ def _track_fit_cell(part: dict[str, Any]) -> str:
     return f"{part.get('window', 10):g} s, {'kept' if part['kept'] else 'rejected'}"
 
 
-def render_shipmmg_controls(record: dict[str, Any]) -> str:
-    """The 3-DOF model with a learned actuator map against KVLCC2 in shipmmg: only the rudder
-    angle and the propeller speed given; the one-step model and any track fits, forecasts per
-    held-out manoeuvre, beside the target."""
-    stages = [(n, part) for n, part in record.items() if n.startswith("controls")]
-    target = record["targets"]["rmse_pos_60"]
-    names = list(stages[0][1]["forecast"]["tracks"])
-    measures = [
-        ("held-out RMSE(pos) over 1-60 s [m]", lambda r: _g(r["forecast"]["rmse_pos_60"]), _g(target)),
+def _shipmmg_forecast_rows(
+    record: dict[str, Any], pos_target: str, heading_target: str, tracks: list[str] | tuple[str, ...] = ()
+) -> list[tuple[str, Any, str]]:
+    """The shipmmg check's forecast rows, shared by both of its tables: held-out RMSE(pos) (and
+    per held-out manoeuvre in ``tracks``), heading, the validation forecast, the normalised RMSE,
+    the track fit and the seconds, as ``(label, cell of a stage, target)``."""
+    return [
+        ("held-out RMSE(pos) over 1-60 s [m]", lambda r: _g(r["forecast"]["rmse_pos_60"]), pos_target),
         *[
             (f"… `{n}`", lambda r, n=n: _g(r["forecast"]["tracks"][n]["rmse_pos_60"]), "")
-            for n in names
+            for n in tracks
         ],
-        ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]), ""),
+        ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]),
+         heading_target),
         ("validation RMSE(pos) over 1-60 s, against the observations [m]",
-         lambda r: _g(r["val_forecast"]["rmse_pos_60"]), ""),
+         lambda r: _g(r["val_forecast"]["rmse_pos_60"]) if "val_forecast" in r else "—", ""),
         ("normalised RMSE over the whole track", lambda r: _pct(r["forecast"]["nrmse_track"]),
          f"published: {_pct(record['published_nrmse'])}"),
         ("track fit: window, guard", _track_fit_cell, ""),
         ("seconds", lambda r: f"{r.get('train_seconds', r.get('seconds', float('nan'))):.0f}", ""),
     ]  # fmt: skip
+
+
+def _shipmmg_table(stages: list[tuple[str, Any]], measures: list, caption: str) -> str:
+    """``caption`` over a table of ``measures`` (label, cell, target), one column per stage."""
     header = ["measure", *[f"`{n}`" for n, _ in stages], "target"]
     rows = [[label, *[fn(r) for _, r in stages], goal] for label, fn, goal in measures]
-    caption = (
-        f"*15 manoeuvres of 90 s, noise {_g(record['position_noise'])} m on x, y and "
-        f"{_g(record['heading_noise'])} rad on the heading, samples 0.4-0.6 s apart; the table logs the "
-        f"rudder angle and the propeller speed, no force; damping `{record['damping']}`, nets of width "
-        f"{record.get('width') or 'the default (32)'}. Forecasts from "
-        "each held-out manoeuvre's first estimated state under its logged controls, scored against "
-        "shipmmg's noise-free trajectory; the validation manoeuvres' against their observations.*"
-    )
     return caption + "\n\n" + _table(header, rows)
+
+
+def _shipmmg_noise(record: dict[str, Any]) -> str:
+    return (
+        f"noise {_g(record['position_noise'])} m on x, y and {_g(record['heading_noise'])} rad on the "
+        "heading, samples 0.4-0.6 s apart"
+    )
+
+
+def render_shipmmg_controls(record: dict[str, Any]) -> str:
+    """The 3-DOF model with a learned actuator map against KVLCC2 in shipmmg: only the rudder
+    angle and the propeller speed given; the one-step model and any track fits, forecasts per
+    held-out manoeuvre, beside the target."""
+    stages = [(n, part) for n, part in record.items() if n.startswith("controls")]
+    tracks = list(stages[0][1]["forecast"]["tracks"])
+    measures = _shipmmg_forecast_rows(record, _g(record["targets"]["rmse_pos_60"]), "", tracks)
+    caption = (
+        f"*15 manoeuvres of 90 s, {_shipmmg_noise(record)}; the table logs the rudder angle and the "
+        f"propeller speed, no force; damping `{record['damping']}`, nets of width "
+        f"{record.get('width') or 'the default (32)'}. Forecasts from each held-out manoeuvre's first "
+        "estimated state under its logged controls, scored against shipmmg's noise-free trajectory; "
+        "the validation manoeuvres' against their observations.*"
+    )
+    return _shipmmg_table(stages, measures, caption)
 
 
 def render_shipmmg(record: dict[str, Any]) -> str:
@@ -480,7 +500,6 @@ def render_shipmmg(record: dict[str, Any]) -> str:
     targets."""
     stages = [(n, part) for n, part in record.items() if n == "one_step" or n.startswith("track_fit")]
     targets = record["targets"]
-    pos, heading = targets["rmse_pos_60"], targets["rmse_heading_60_deg"]
     measures = [
         *[
             (f"added mass {a}", lambda r, a=a: _pct(r["added_mass"][a]["rel_error"]),
@@ -492,26 +511,15 @@ def render_shipmmg(record: dict[str, Any]) -> str:
              _pct(targets["total_inertia"]))
             for a in ("m_11", "m_22", "m_66")
         ],
-        ("held-out RMSE(pos) over 1-60 s [m]", lambda r: _g(r["forecast"]["rmse_pos_60"]), _g(pos)),
-        ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]),
-         _g(heading)),
-        ("validation RMSE(pos) over 1-60 s, against the observations [m]",
-         lambda r: _g(r["val_forecast"]["rmse_pos_60"]) if "val_forecast" in r else "—", ""),
-        ("normalised RMSE over the whole track", lambda r: _pct(r["forecast"]["nrmse_track"]),
-         f"published: {_pct(record['published_nrmse'])}"),
-        ("track fit: window, guard", _track_fit_cell, ""),
-        ("seconds", lambda r: f"{r.get('train_seconds', r.get('seconds', float('nan'))):.0f}", ""),
+        *_shipmmg_forecast_rows(record, _g(targets["rmse_pos_60"]), _g(targets["rmse_heading_60_deg"])),
     ]  # fmt: skip
-    header = ["measure", *[f"`{n}`" for n, _ in stages], "target"]
-    rows = [[label, *[fn(r) for _, r in stages], target] for label, fn, target in measures]
     caption = (
-        f"*15 manoeuvres of 90 s (held out: {', '.join(record['split']['test'])}), noise "
-        f"{_g(record['position_noise'])} m on x, y and {_g(record['heading_noise'])} rad on the heading, "
-        f"samples 0.4-0.6 s apart; damping `{record['damping']}`; errors are relative to shipmmg's values; "
-        "the forecasts run from each held-out track's first estimated state under its recorded forcing "
-        "and are scored against shipmmg's noise-free trajectory.*"
+        f"*15 manoeuvres of 90 s (held out: {', '.join(record['split']['test'])}), {_shipmmg_noise(record)}; "
+        f"damping `{record['damping']}`; errors are relative to shipmmg's values; the forecasts run from "
+        "each held-out track's first estimated state under its recorded forcing and are scored against "
+        "shipmmg's noise-free trajectory.*"
     )
-    return caption + "\n\n" + _table(header, rows)
+    return _shipmmg_table(stages, measures, caption)
 
 
 def render_turning_choice(record: dict[str, Any]) -> str:
