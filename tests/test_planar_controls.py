@@ -3,6 +3,8 @@ known forces would, the learned actuator map's field is the body's under the map
 derivatives match central differences, training learns the map, and bad control tables are
 refused in one line."""
 
+import json
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -93,19 +95,29 @@ def test_the_actuated_field_is_the_body_under_the_mapped_force(turning) -> None:
             np.testing.assert_allclose(jac[:, j], fd, rtol=1e-6, atol=1e-8)
 
 
-def test_training_learns_the_map_from_controls_to_forces(controlled_frame) -> None:
+def test_training_learns_the_map_and_the_stored_run_forecasts_as_trained(
+    controlled_frame, tmp_path, capsys
+) -> None:
     """The controls are the forces themselves: 500 Adam steps take the one-step validation loss
     below a tenth of the untrained model's, and held-out forecasts over 5 s within 5 cm (the test
-    trajectories end 0.2-0.8 m from their starts)."""
-    from fhnn.api.planar_controls import evaluate_controlled, import_controlled, train_controlled
+    trajectories end 0.2-0.8 m from their starts). The run folder loads to identical weights and
+    ``fhnn turning evaluate`` on it gives the API's numbers; the known-force functions refuse the
+    run and the data, and a run is not scored on other controls."""
+    from fhnn.api.planar import evaluate_turning, load_turning
+    from fhnn.api.planar_controls import evaluate_controlled, import_controlled
+    from fhnn.api.planar_controls_files import evaluate_controlled_run, load_controlled, train_controlled_run
+    from fhnn.data.planar import read_planar
+    from fhnn.data.planar_controls_file import write_controlled
     from fhnn.models.planar import PlanarModelConfig
     from fhnn.models.planar_actuated import build_actuated_fhnn
     from fhnn.training.planar import PlanarTrainConfig, _pairs, rate_scales, step_residuals
+    from tests.conftest import arrays, run_cli
 
     data = import_controlled(controlled_frame, list(CONTROLS.values()), mass=10.0, inertia=1.0, seed=2)
     model_config = PlanarModelConfig(width=16, depth=2)
     training = PlanarTrainConfig(adam_steps=500, lbfgs_steps=0, validate_every=100, seed=0)
-    fit = train_controlled(data, model=model_config, training=training)
+    run = tmp_path / "run"
+    fit = train_controlled_run(data, run, model=model_config, training=training)
     start = build_actuated_fhnn(model_config, data.dataset, 3, key=jax.random.PRNGKey(0))
     val = data.dataset.splits["val"]
     scales = rate_scales(data.dataset.splits["train"])
@@ -113,6 +125,76 @@ def test_training_learns_the_map_from_controls_to_forces(controlled_frame) -> No
     assert fit.val_loss < before / 10
     errors = evaluate_controlled(fit.model, data, horizon=5.0)
     assert errors["diverged"] == 0 and errors["rmse_pos"] < 0.05
+    # stored and loaded: the same weights, the same controls
+    loaded, controls = load_controlled(run)
+    assert controls == tuple(CONTROLS.values()) and loaded.n_controls == 3
+    for a, b in zip(arrays(loaded), arrays(fit.model), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # the command scores the stored run on the stored data as the API scores the trained model
+    path = write_controlled(data.dataset, data.controls, tmp_path / "controls.h5")
+    code, out, err = run_cli(["turning", "evaluate", str(run), str(path), "--horizon", "5", "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(out)["forecast"] == errors
+    assert evaluate_controlled_run(run, path, horizon=5.0)["forecast"] == errors
+    # the known-force readers refuse what would be read as forces
+    with pytest.raises(DataFormatError, match="not a turning body's data set"):
+        read_planar(path)
+    with pytest.raises(DataFormatError, match="not a turning model"):
+        load_turning(run)
+    with pytest.raises(DataFormatError, match="not a turning body's data set"):
+        evaluate_turning(fit.model.body, path)
+    other = write_controlled(data.dataset, ("rudder", "rpm", "flap"), tmp_path / "other.h5")
+    code, _, err = run_cli(["turning", "evaluate", str(run), str(other)], capsys)
+    assert code == 2 and "was trained on controls rudder, rpm, trim; the data hold rudder, rpm, flap" in err
+
+
+def test_the_import_command_takes_controls_and_the_train_command_learns_their_map(
+    controlled_frame, tmp_path, capsys
+) -> None:
+    """``fhnn import --controls`` writes what :func:`import_controlled` makes (the controls' own
+    kind of file); ``fhnn turning train`` on it trains a model of controls (here no steps: the
+    routing is what is checked); misplaced options are refused in one line, nothing written."""
+    from fhnn.api.planar_controls import import_controlled
+    from fhnn.api.planar_controls_files import is_controlled_run, load_controlled, read_controlled_data
+    from tests.conftest import run_cli
+
+    table = tmp_path / "trials.csv"
+    controlled_frame.to_csv(table, index=False)
+    out = tmp_path / "trials.h5"
+    base = ["import", str(table), "-o", str(out), "--mass", "10", "--inertia", "1", "--seed", "2"]
+    code, _, err = run_cli([*base, "--controls", "rudder, rpm,trim"], capsys)
+    assert code == 0, err
+    assert "a turning body's data set under controls rudder, rpm, trim" in " ".join(err.split())
+    stored = read_controlled_data(out)
+    expected = import_controlled(table, list(CONTROLS.values()), mass=10.0, inertia=1.0, seed=2)
+    assert stored.controls == expected.controls
+    for name, split in expected.dataset.splits.items():
+        for key in ("t", "states", "states_clean", "forces", "lengths"):
+            np.testing.assert_array_equal(getattr(stored.dataset.splits[name], key), getattr(split, key))
+    run = tmp_path / "run"
+    code, said, err = run_cli(
+        ["turning", "train", str(out), "-o", str(run), "--adam-steps", "0", "--lbfgs-steps", "0"], capsys
+    )
+    assert code == 0, err
+    assert "a map from the controls to forces learned" in said and is_controlled_run(run)
+    assert load_controlled(run)[1] == tuple(CONTROLS.values())
+    refused = [
+        (
+            [*base, "--controls", "rudder", "--time-dependent"],
+            "--time-dependent does not apply with --controls",
+        ),
+        ([*base, "--controls", "rudder,fins"], "no control column 'fins'"),
+        ([*base, "--controls", "rudder", "--area", "1"], "--area and --forcing apply to a table without"),
+    ]
+    flat = tmp_path / "flat.csv"
+    controlled_frame.drop(columns="heading").to_csv(flat, index=False)
+    flat_args = ["import", str(flat), "-o", str(out), "--mass", "10", "--area", "1", "--controls", "rudder"]
+    refused.append((flat_args, "--controls applies to a table with a heading column"))
+    out.unlink()
+    for argv, message in refused:
+        code, _, err = run_cli(argv, capsys)
+        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+        assert not out.exists()
 
 
 @pytest.mark.parametrize(

@@ -13,6 +13,7 @@ from fhnn.api.data import import_table as import_data
 from fhnn.api.data import info as data_info
 from fhnn.api.data import simulate as simulate_data
 from fhnn.api.planar import import_turning
+from fhnn.api.planar_controls_files import import_controlled_file
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, ForcingHoldOption, TimeUnitOption, app
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
@@ -154,6 +155,15 @@ def import_table(
         ),
     ] = None,
     forcing_hold: ForcingHoldOption = "linear",
+    controls: Annotated[
+        str | None,
+        typer.Option(
+            "--controls",
+            help="With a heading column: the table's control columns (1 to 3, comma-separated, e.g. "
+            "rudder,rps) in place of known forces; `fhnn turning train` then learns the map from "
+            "controls to forces.",
+        ),
+    ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No summary.")] = False,
 ) -> None:
     """Import observed trajectories from a table into a data set: rows in any order, irregular times,
@@ -161,12 +171,33 @@ def import_table(
     (--max-gap) becomes pieces; glitches (--outliers) are dropped and counted; velocities the table
     lacks are estimated from the positions (a smoother held to the noise level they show).
     Trajectories are split into train/val/test by a seeded permutation. A table with a heading
-    column makes a turning body's data set (--mass, --inertia; train it with `fhnn turning train`)."""
+    column makes a turning body's data set (--mass, --inertia; train it with `fhnn turning train`),
+    driven by known forces or by the --controls columns."""
     if has_heading(table, parse_columns(columns)):
         if area is not None or forcing is not None:
             raise ConfigError("--area and --forcing apply to a table without a heading column (a point body)")
         if inertia is None:
             raise ConfigError("--inertia is needed for a table with a heading column (a body that turns)")
+        if controls is not None:
+            if time_dependent:
+                raise ConfigError("--time-dependent does not apply with --controls")
+            names = [c.strip() for c in controls.split(",")]
+            controlled = import_controlled_file(
+                table,
+                output,
+                names,
+                mass=mass,
+                inertia=inertia,
+                x_g=x_g,
+                split=parse_split(split),
+                seed=seed,
+                smoother=smoother,
+                columns=columns,
+                time_unit=time_unit,
+            )
+            if not quiet:
+                _turning_summary(controlled.dataset, output, f"controls {', '.join(controlled.controls)}")
+            return
         data = import_turning(
             table,
             output,
@@ -183,6 +214,8 @@ def import_table(
         if not quiet:
             _turning_summary(data, output)
         return
+    if controls is not None:
+        raise ConfigError("--controls applies to a table with a heading column (a body that turns)")
     if area is None:
         raise ConfigError("--area is needed for a table without a heading column (a point body)")
     if inertia is not None:
@@ -213,12 +246,14 @@ def import_table(
         render.summary(data_info(dataset), str(output))
 
 
-def _turning_summary(data: PlanarDataset, output: Path) -> None:
-    """One line on an imported turning body's data set."""
+def _turning_summary(data: PlanarDataset, output: Path, forcing: str = "") -> None:
+    """One line on an imported turning body's data set (``forcing``: what drives it, if said)."""
     sizes = ", ".join(f"{k} {s.states.shape[0]}" for k, s in data.splits.items())
     noise = data.params["noise"]
+    under = f" under {forcing}" if forcing else ""
     render.note(
-        f"wrote {output}: a turning body's data set; trajectories {sizes}; {data.params['rows']} rows, "
+        f"wrote {output}: a turning body's data set{under}; trajectories {sizes}; "
+        f"{data.params['rows']} rows, "
         f"{data.params['dropped']} dropped; noise: position {noise['position']:.3g} m, heading "
         f"{noise['heading']:.3g} rad; smoother {data.params['smoother']}"
     )

@@ -9,6 +9,13 @@ from typing import Annotated
 import typer
 
 from fhnn.api.planar import evaluate_turning, figure_turning, simulate_turning, train_turning
+from fhnn.api.planar_controls_files import (
+    evaluate_controlled_run,
+    figure_controlled_run,
+    is_controlled,
+    is_controlled_run,
+    train_controlled_run,
+)
 from fhnn.cli import render
 from fhnn.cli.options import QuietOption, app
 from fhnn.errors import ConfigError
@@ -64,7 +71,8 @@ def train(
     ] = "diagonal",
     quiet: QuietOption = False,
 ) -> None:
-    """Train the 3-DOF FHNN (flow, added masses, damping) and write model.eqx and run.json."""
+    """Train the 3-DOF FHNN (flow, added masses, damping) and write model.eqx and run.json; on data
+    imported with --controls, also the map from the controls to the body's forces."""
     given = {"adam_steps": adam_steps, "lbfgs_steps": lbfgs_steps, "seed": seed}
     config = PlanarTrainConfig(**{k: v for k, v in given.items() if v is not None})
     model = PlanarModelConfig(damping=damping)
@@ -73,6 +81,15 @@ def train(
         if not quiet and (step % 500 == 0 or step == steps):
             render.note(f"{phase} {step}/{steps}: training loss {loss:.3e}")
 
+    if is_controlled(data):
+        fit = train_controlled_run(data, output, model=model, training=config, progress=progress)
+        render.stdout.print(
+            f"wrote {output}: validation loss {fit.val_loss:.3e} after {fit.seconds:.0f} s; a map from "
+            "the controls to forces learned (the added masses are not fixed by such data)",
+            soft_wrap=True,
+            highlight=False,
+        )
+        return
     fit = train_turning(data, model=model, training=config, out=output, progress=progress)
     masses = fit.model.added_mass()
     render.stdout.print(
@@ -100,9 +117,13 @@ def evaluate(
     """Forecast errors and added masses; for a simulation also damping and flow against its truth."""
     if horizon <= 0:
         raise ConfigError(f"--horizon must be positive, got {horizon:g}")
-    report = evaluate_turning(run, data, horizon=horizon)
+    controlled = is_controlled_run(run)
+    evaluate, draw = (
+        (evaluate_controlled_run, figure_controlled_run) if controlled else (evaluate_turning, figure_turning)
+    )
+    report = evaluate(run, data, horizon=horizon)
     if figure is not None:
-        figure_turning(run, data, figure, horizon=horizon)
+        draw(run, data, figure, horizon=horizon)
     if as_json:
         render.stdout.print_json(json.dumps(report))
         return
@@ -116,7 +137,8 @@ def evaluate(
             f"{k} {v['learned']:.4g}"
             + (f" (true {v['true']:.4g}, {100 * v['rel_error']:.2g} %)" if "true" in v else "")
             for k, v in report["added_mass"].items()
-        ),
+        )
+        + (" (fit parameters: no force is known)" if controlled else ""),
     ]
     if "damping" in report:
         axes = ("surge", "sway", "yaw")
