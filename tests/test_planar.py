@@ -224,6 +224,38 @@ def test_bad_planar_settings_are_refused_by_name() -> None:
         simulate_planar(n_traj=2)
 
 
+def test_inspect_reads_the_damping_over_the_velocities_the_data_cover(small_planar) -> None:
+    """With the true flow in the model, the covered relative velocities are the simulation's own
+    (:func:`fhnn.evaluation.planar.relative_velocities`, to the bit); the diagonal damping's
+    force is its coefficient times the velocity; the masses' and the damping's errors are the
+    truth's, computed here again."""
+    import equinox as eqx
+
+    from fhnn.api.planar_inspect import inspect_turning
+    from fhnn.evaluation.planar import relative_velocities
+
+    model = _perturbed(_model(small_planar), 3)
+    with_truth = eqx.tree_at(lambda m: m.flow, model, small_planar.truth().flow())
+    found = inspect_turning(with_truth, small_planar, max_points=100)
+    assert found.files == () and len(found.damping) == 100
+    d = found.damping
+    np.testing.assert_array_equal(d[["u_r", "v_r", "r_r"]].to_numpy(), relative_velocities(small_planar, 100))
+    for speed, force, coef in (("u_r", "X_d", "d_11"), ("v_r", "Y_d", "d_22"), ("r_r", "N_d", "d_66")):
+        np.testing.assert_allclose(d[force], d[coef] * d[speed], rtol=1e-12, atol=1e-15)
+        assert (d[coef] > 0).all()
+        row = found.coefficients.set_index("name").loc[coef]
+        assert (row["low"], row["high"]) == (d[coef].min(), d[coef].max())
+        err = np.linalg.norm(d[force] - d[f"true_{force}"]) / np.linalg.norm(d[f"true_{force}"])
+        assert row["rel_error"] == pytest.approx(err, rel=1e-12)
+    true = jax.vmap(small_planar.truth().damping())(jnp.asarray(d[["u_r", "v_r", "r_r"]].to_numpy()))
+    np.testing.assert_allclose(
+        d[["true_X_d", "true_Y_d", "true_N_d"]].to_numpy(), np.asarray(true), rtol=1e-12
+    )
+    masses = found.coefficients.set_index("name").loc[["m_11", "m_22", "m_66"]]
+    np.testing.assert_array_equal(masses["value"], np.asarray(model.added_mass()))
+    np.testing.assert_array_equal(masses["true"], small_planar.params["added_mass"])
+
+
 def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(tmp_path, capsys) -> None:
     """``fhnn turning``: a short run end to end, the report's numbers as the library computes
     them, and one-line errors with status 2 (no file left behind)."""
@@ -263,6 +295,12 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
     again = evaluate_turning(load_turning(folder), data, horizon=2.0)
     assert report["forecast"]["rmse_pos"] == pytest.approx(again["forecast"]["rmse_pos"], rel=1e-12)
     assert report["added_mass"]["m_22"]["true"] == 9.0
+    code, out, err = run(["turning", "inspect", str(folder), str(data), "--max-points", "50"])
+    assert code == 0, err
+    said = " ".join(out.split())
+    assert "m_22" in said and "d_66 over r_r" in said
+    for name in ("coefficients.csv", "damping.csv", "damping.png"):
+        assert (folder / name).stat().st_size > 0
     bad = [
         (["turning", "evaluate", str(folder), str(data), "--horizon", "3"], "exceeds the shortest test"),
         (
@@ -272,6 +310,11 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
         (["turning", "train", str(data), "-o", str(folder)], "holds a model already"),
         (["turning", "train", str(tmp_path / "none.h5"), "-o", str(tmp_path / "r2")], "no such file"),
         (["turning", "evaluate", str(tmp_path), str(data)], "no such file"),
+        (["turning", "inspect", str(folder), str(data), "--out", str(tmp_path / "r2")], "does not exist"),
+        (
+            ["turning", "inspect", str(folder), str(data), "--max-points", "0"],
+            "max_points must be at least 1",
+        ),
         (["turning", "simulate", "turning_vortex", "-o", str(tmp_path / "x.h5"), "--dt", "0"], "dt"),
     ]
     for argv, message in bad:

@@ -178,6 +178,8 @@ def test_the_import_command_takes_controls_and_the_train_command_learns_their_ma
     assert code == 0, err
     assert "a map from the controls to forces learned" in said and is_controlled_run(run)
     assert load_controlled(run)[1] == tuple(CONTROLS.values())
+    code, _, err = run_cli(["turning", "inspect", str(run), str(out)], capsys)
+    assert code == 2 and "a model of logged controls, whose added masses and damping" in err
     refused = [
         (
             [*base, "--controls", "rudder", "--time-dependent"],

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.table import Table
 
 from fhnn.api.planar import evaluate_turning, figure_turning, simulate_turning, train_turning
 from fhnn.api.planar_controls_files import (
@@ -16,6 +17,7 @@ from fhnn.api.planar_controls_files import (
     is_controlled_run,
     train_controlled_run,
 )
+from fhnn.api.planar_inspect import inspect_turning
 from fhnn.cli import render
 from fhnn.cli.options import QuietOption, app
 from fhnn.errors import ConfigError
@@ -149,3 +151,35 @@ def evaluate(
         ]
     for line in lines:
         render.stdout.print(line, soft_wrap=True, highlight=False, markup=False)
+
+
+@turning.command()
+def inspect(
+    run: Annotated[Path, typer.Argument(help="Run folder written by `fhnn turning train` (known forces).")],
+    data: Annotated[Path, typer.Argument(help="The data set it was trained on.")],
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Folder for the files [default: the run folder].")
+    ] = None,
+    max_points: Annotated[int, typer.Option(help="At most this many covered relative velocities.")] = 2000,
+) -> None:
+    """Added masses and damping over the relative velocities the training data cover: prints them
+    (beside the truth for a simulation) and writes coefficients.csv, damping.csv and damping.png."""
+    found = inspect_turning(run, data, out=out, max_points=max_points)
+    table = Table()
+    for column in ("quantity", "learned", "unit", "true", "error"):
+        table.add_column(column, justify="left" if column in ("quantity", "unit") else "right")
+    for row in found.coefficients.to_dict("records"):
+        learned = (
+            f"{row['value']:.4g}" if _given(row.get("value")) else f"{row['low']:.3g} to {row['high']:.3g}"
+        )
+        name = row["name"] if _given(row.get("value")) else f"{row['name']} over {row['over']}"
+        true = f"{row['true']:.4g}" if _given(row.get("true")) else ""
+        error = f"{100 * row['rel_error']:.2g} %" if _given(row.get("rel_error")) else ""
+        table.add_row(name, learned, row["unit"], true, error)
+    render.stdout.print(table)
+    render.note(f"wrote {', '.join(str(p) for p in found.files)}")
+
+
+def _given(value: object) -> bool:
+    """Whether a table cell holds a number (pandas fills a missing one with NaN)."""
+    return isinstance(value, int | float) and value == value
