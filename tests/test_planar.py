@@ -295,6 +295,10 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
     again = evaluate_turning(load_turning(folder), data, horizon=2.0)
     assert report["forecast"]["rmse_pos"] == pytest.approx(again["forecast"]["rmse_pos"], rel=1e-12)
     assert report["added_mass"]["m_22"]["true"] == 9.0
+    code, out, _ = run(["info", str(data)])
+    assert (
+        code == 0 and "a turning body's data set under known forces; scenario turning_vortex, seed 4" in out
+    )
     code, out, err = run(["turning", "inspect", str(folder), str(data), "--max-points", "50"])
     assert code == 0, err
     said = " ".join(out.split())

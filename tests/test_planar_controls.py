@@ -171,6 +171,13 @@ def test_the_import_command_takes_controls_and_the_train_command_learns_their_ma
     for name, split in expected.dataset.splits.items():
         for key in ("t", "states", "states_clean", "forces", "lengths"):
             np.testing.assert_array_equal(getattr(stored.dataset.splits[name], key), getattr(split, key))
+    code, said, err = run_cli(["info", str(out), "--json"], capsys)
+    described = json.loads(said)
+    assert code == 0 and described["controls"] == list(CONTROLS.values())
+    for name, split in expected.dataset.splits.items():
+        assert described["splits"][name]["samples"] == int(split.lengths.sum())
+    states = expected.dataset.splits["train"].states[expected.dataset.splits["train"].valid()]
+    assert described["covered"]["r"] == [states[:, 5].min(), states[:, 5].max()]
     run = tmp_path / "run"
     code, said, err = run_cli(
         ["turning", "train", str(out), "-o", str(run), "--adam-steps", "0", "--lbfgs-steps", "0"], capsys

@@ -14,6 +14,7 @@ from fhnn.api.data import info as data_info
 from fhnn.api.data import simulate as simulate_data
 from fhnn.api.planar import import_turning
 from fhnn.api.planar_controls_files import import_controlled_file
+from fhnn.api.planar_info import is_turning_data, turning_info
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, ForcingHoldOption, TimeUnitOption, app
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
@@ -259,14 +260,47 @@ def _turning_summary(data: PlanarDataset, output: Path, forcing: str = "") -> No
     )
 
 
+def _turning_info(info: dict, path: Path) -> None:
+    """A turning body's data set (:func:`fhnn.api.planar_info.turning_info`) in a few lines."""
+    forcing = f"controls {', '.join(info['controls'])}" if info["controls"] else "known forces"
+    lines = [
+        f"{path}: a turning body's data set under {forcing}; scenario {info['scenario']}, "
+        f"seed {info['seed']}",
+        f"body: mass {info['mass']:.4g} kg, inertia {info['inertia']:.4g} kg·m², x_g {info['x_g']:.4g} m",
+        "trajectories × samples (longest): "
+        + ", ".join(
+            f"{k} {v['trajectories']} × {v['samples']} ({v['duration']:.3g} s)"
+            for k, v in info["splits"].items()
+        ),
+        "training states cover: "
+        + ", ".join(f"{k} {lo:.3g} to {hi:.3g}" for k, (lo, hi) in info["covered"].items()),
+    ]
+    if info.get("noise"):
+        noise = info["noise"]
+        lines.append(
+            f"noise seen: position {noise['position']:.3g} m, heading {noise['heading']:.3g} rad; "
+            f"smoother {info['smoother']}"
+        )
+    for line in lines:
+        render.stdout.print(line, soft_wrap=True, highlight=False, markup=False)
+
+
 @app.command()
 def info(
     file: Annotated[Path, typer.Argument(help="An fhnn HDF5 data set.")],
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
 ) -> None:
-    """Describe a data set: scenario, parameters, split sizes, and the ranges of r, speed and σ covered."""
+    """Describe a data set: scenario, parameters, split sizes, and the ranges of r, speed and σ
+    covered; for a turning body's, the body, the split sizes and the ranges of its states."""
     import json
 
+    if is_turning_data(file):
+        described = turning_info(file)
+        if as_json:
+            typer.echo(json.dumps(described, indent=2, sort_keys=True))
+        else:
+            _turning_info(described, file)
+        return
     summary = data_info(file)
     if as_json:
         typer.echo(json.dumps(summary, indent=2, sort_keys=True))
