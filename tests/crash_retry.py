@@ -10,6 +10,12 @@ entries are checksummed zlib streams, so a torn file cannot reach XLA; deseriali
 are a known crash source, jax-ml/jax#28908). A crash there says nothing of the test, so the test
 is run again, once; a test that crashes a second time fails, and a failing assertion is never run
 again.
+
+The persistent cache is not the cause: with it switched off for a whole run (2026-12-05) the
+workers still died twice, both times of a segmentation fault inside XLA's compilation
+(``backend_compile_and_load``), in other tests (a quasi-Newton phase of ``fhnn train``, a
+plan's first run), and the run took 1,199 s against 1,055 s with the cache. Every full run of
+that day had two such crashes, each in a different test.
 A rerun is reported as ``R`` and counted as "rerun" in the summary line.
 """
 
