@@ -305,6 +305,46 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
     assert "m_22" in said and "d_66 over r_r" in said
     for name in ("coefficients.csv", "damping.csv", "damping.png"):
         assert (folder / name).stat().st_size > 0
+    # predict: each track continued from its estimated last state (noise-free table: the truth's)
+    import pandas as pd
+
+    from fhnn.api.planar_predict import COLUMNS
+    from fhnn.data.planar import read_planar
+    from fhnn.data.planar_table import observed_table
+
+    simulated = read_planar(data)
+    history = pd.DataFrame(observed_table(simulated))
+    history.to_csv(tmp_path / "h.csv", index=False)
+    forecast_path = tmp_path / "forecast.csv"
+    predict = [
+        "turning",
+        "predict",
+        str(folder),
+        "--history",
+        str(tmp_path / "h.csv"),
+        "-o",
+        str(forecast_path),
+    ]
+    code, _, err = run([*predict, "--duration", "1", "--dt", "0.25"])
+    assert code == 0, err
+    forecast = pd.read_csv(forecast_path)
+    assert (
+        tuple(forecast.columns) == COLUMNS and forecast["traj_id"].nunique() == history["traj_id"].nunique()
+    )
+    assert (forecast.groupby("traj_id").size() == 5).all()  # 0, 0.25, ..., 1 s after the last sample
+    first = forecast.groupby("traj_id").head(1).set_index("traj_id")
+    for track, row in first.iterrows():
+        split, index = track.split("-")
+        part = simulated.splits[split]
+        end = part.states_clean[int(index), part.lengths[int(index)] - 1]
+        assert row["t"] == pytest.approx(part.t[int(index), part.lengths[int(index)] - 1], abs=1e-12)
+        np.testing.assert_allclose(row[["x", "y", "heading"]].to_numpy(float), end[:3], atol=1e-4)
+        np.testing.assert_allclose(row[["u", "v", "r"]].to_numpy(float), end[3:], atol=2e-2)
+    # the last track keeps one sample: no state can be estimated from it
+    single = history[history["traj_id"] != history["traj_id"].iloc[-1]]
+    single = pd.concat([single, history[history["traj_id"] == history["traj_id"].iloc[-1]].head(1)])
+    single.to_csv(tmp_path / "h1.csv", index=False)
+    one = [*predict[:4], str(tmp_path / "h1.csv"), "-o", str(tmp_path / "r2.csv"), "--duration", "1"]
     bad = [
         (["turning", "evaluate", str(folder), str(data), "--horizon", "3"], "exceeds the shortest test"),
         (
@@ -315,6 +355,9 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
         (["turning", "train", str(tmp_path / "none.h5"), "-o", str(tmp_path / "r2")], "no such file"),
         (["turning", "evaluate", str(tmp_path), str(data)], "no such file"),
         (["turning", "inspect", str(folder), str(data), "--out", str(tmp_path / "r2")], "does not exist"),
+        ([*predict, "--duration", "0"], "duration must be a positive number of seconds"),
+        ([*predict[:-1], str(tmp_path / "r2.txt"), "--duration", "1"], "give a .csv or .parquet file"),
+        (one, "has 1 sample(s)"),
         (
             ["turning", "inspect", str(folder), str(data), "--max-points", "0"],
             "max_points must be at least 1",
@@ -326,6 +369,7 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
         assert code == 2 and out == "", argv
         assert err.startswith("error: ") and message in err and err.count("\n") == 1, err
     assert not (tmp_path / "x.h5").exists() and not (tmp_path / "r2").exists()
+    assert not (tmp_path / "r2.csv").exists() and not (tmp_path / "r2.txt").exists()
 
 
 # --- a turning body's table ----------------------------------------------------------------------

@@ -185,6 +185,26 @@ def test_the_import_command_takes_controls_and_the_train_command_learns_their_ma
     assert code == 0, err
     assert "a map from the controls to forces learned" in said and is_controlled_run(run)
     assert load_controlled(run)[1] == tuple(CONTROLS.values())
+    forecast = tmp_path / "forecast.parquet"
+    predict = [
+        "turning",
+        "predict",
+        str(run),
+        "--history",
+        str(table),
+        "-o",
+        str(forecast),
+        "--duration",
+        "0.5",
+    ]
+    code, said, err = run_cli(predict, capsys)
+    assert code == 0 and f"wrote {forecast}: 20 tracks continued 0.5 s" in " ".join(err.split()), err
+    continued = pd.read_parquet(forecast)
+    last = controlled_frame.sort_values("t").groupby("traj_id")["t"].max()
+    assert (continued.groupby("traj_id")["t"].min() == last.loc[continued["traj_id"].unique()]).all()
+    controlled_frame.drop(columns="trim").to_csv(tmp_path / "no_trim.csv", index=False)
+    code, _, err = run_cli([*predict[:4], str(tmp_path / "no_trim.csv"), *predict[5:]], capsys)
+    assert code == 2 and "no control column 'trim'" in err
     code, _, err = run_cli(["turning", "inspect", str(run), str(out)], capsys)
     assert code == 2 and "a model of logged controls, whose added masses and damping" in err
     refused = [

@@ -18,8 +18,9 @@ from fhnn.api.planar_controls_files import (
     train_controlled_run,
 )
 from fhnn.api.planar_inspect import inspect_turning
+from fhnn.api.planar_predict import predict_turning
 from fhnn.cli import render
-from fhnn.cli.options import QuietOption, app
+from fhnn.cli.options import ColumnsOption, QuietOption, TimeUnitOption, app
 from fhnn.errors import ConfigError
 from fhnn.models.planar import PlanarModelConfig
 from fhnn.physics.planar_scenarios import PLANAR_SCENARIOS
@@ -178,6 +179,47 @@ def inspect(
         table.add_row(name, learned, row["unit"], true, error)
     render.stdout.print(table)
     render.note(f"wrote {', '.join(str(p) for p in found.files)}")
+
+
+@turning.command()
+def predict(
+    run: Annotated[Path, typer.Argument(help="Run folder written by `fhnn turning train`.")],
+    history: Annotated[
+        Path,
+        typer.Option(
+            "--history",
+            help="Observed tracks (.csv/.parquet): traj_id, t, x, y, heading and the run's forcing "
+            "columns (Fu, Fv[, Mz] or Fx, Fy; a run of controls: its control columns).",
+        ),
+    ],
+    duration: Annotated[float, typer.Option(help="Forecast length in s after each track's last sample.")],
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="Forecast table to write (.csv or .parquet).")
+    ],
+    dt: Annotated[
+        float | None, typer.Option(help="Output step in s [default: the history's median step].")
+    ] = None,
+    smoother: Annotated[str, typer.Option(help="As for `fhnn import`: spline, kalman or auto.")] = "auto",
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = "s",
+    quiet: QuietOption = False,
+) -> None:
+    """Continue each observed track from its last estimated state (pose and body-frame velocity,
+    smoothed as `fhnn import` does), its last forces or controls held; write traj_id, t, x, y,
+    heading, u, v, r."""
+    forecast = predict_turning(
+        run,
+        history,
+        duration,
+        dt=dt,
+        smoother=smoother,
+        columns=columns,
+        time_unit=time_unit,
+        output=output,
+    )
+    if not quiet:
+        tracks = forecast["traj_id"].nunique()
+        render.note(f"wrote {output}: {tracks} tracks continued {duration:g} s, {len(forecast)} rows")
 
 
 def _given(value: object) -> bool:
