@@ -1,4 +1,5 @@
-"""``fhnn turning simulate|train|evaluate``: a body that turns (3-DOF), over :mod:`fhnn.api.planar`."""
+"""``fhnn turning simulate|train|evaluate|inspect|predict``: a body that turns (3-DOF), over
+:mod:`fhnn.api.planar` and its neighbours."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from fhnn.physics.planar_scenarios import PLANAR_SCENARIOS
 from fhnn.training.planar import PlanarTrainConfig
 
 turning = typer.Typer(
-    help="Bodies that turn (3-DOF: surge, sway, yaw): simulate, train, evaluate.",
+    help="Bodies that turn (3-DOF: surge, sway, yaw): simulate, train, evaluate, inspect, predict.",
     no_args_is_help=True,
     rich_markup_mode=None,
 )
