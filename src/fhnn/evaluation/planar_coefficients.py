@@ -54,8 +54,9 @@ def damping_samples(
     ``true_X_d, true_Y_d, true_N_d`` at the same ``ν_r``. Each ``(P,)``."""
     nu_r = covered_relative_velocities(model, dataset, max_points)
     x = jnp.asarray(nu_r)
-    force = np.asarray(jax.vmap(model.damping)(x))
-    coefficients = np.asarray(jax.vmap(model.damping.coefficients)(x))
+    matrix = np.asarray(jax.vmap(model.damping.matrix)(x))  # D(ν_r): the force and its diagonal from one pass
+    force = np.einsum("pij,pj->pi", matrix, nu_r)
+    coefficients = np.diagonal(matrix, axis1=1, axis2=2)
     out: dict[str, np.ndarray] = {}
     for i, axis in enumerate(AXES):
         out[axis[0]] = nu_r[:, i]
