@@ -31,10 +31,10 @@ from fhnn.data.derivatives import choose_smoother
 from fhnn.data.planar import solve_planar
 from fhnn.data.planar_controls import controls_as_forcing
 from fhnn.data.planar_table import PlanarTrajectory, _smoothed, read_planar_table
-from fhnn.data.table import parse_columns
-from fhnn.errors import ConfigError, DataFormatError
+from fhnn.data.table import check_table_name, parse_columns, write_table
+from fhnn.errors import ConfigError
 from fhnn.evaluation.planar import ROLLOUT_BOUND, ROLLOUT_TOL
-from fhnn.files import atomic_output, check_output_path
+from fhnn.files import check_output_path
 
 #: The forecast's columns, in order.
 COLUMNS = ("traj_id", "t", "x", "y", "heading", "u", "v", "r")
@@ -84,17 +84,16 @@ def predict_turning(
         it did.
 
     Raises:
-        ConfigError: a bad ``duration``, ``dt`` or setting.
-        DataFormatError: a bad run folder, table or ``output`` path.
+        ConfigError: a bad ``duration``, ``dt`` or setting, or ``output`` not a .csv or .parquet
+            name.
+        DataFormatError: a bad run folder or table, or an ``output`` that cannot be written.
     """
     if not (np.isfinite(duration) and duration > 0):
         raise ConfigError(f"duration must be a positive number of seconds, got {duration!r}")
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         raise ConfigError(f"dt must be a positive number of seconds, got {dt!r}")
-    if output is not None:
-        target = check_output_path(output)
-        if target.suffix not in (".csv", ".parquet"):
-            raise DataFormatError(f"{output}: give a .csv or .parquet file for the forecast")
+    if output is not None:  # before any work: a name write_table takes, in a writable folder
+        check_output_path(check_table_name(output))
     if is_controlled_run(run):
         model, controls = load_controlled(run)
         table = read_planar_table(
@@ -139,11 +138,7 @@ def predict_turning(
         rows.append(part)
     forecast = pd.concat(rows, ignore_index=True)
     if output is not None:
-        with atomic_output(output) as tmp:
-            if str(output).endswith(".parquet"):
-                forecast.to_parquet(tmp, index=False)
-            else:
-                forecast.to_csv(tmp, index=False)
+        write_table({name: forecast[name].to_numpy() for name in COLUMNS}, output)
     return forecast
 
 
