@@ -130,6 +130,9 @@ def test_training_learns_the_map_and_the_stored_run_forecasts_as_trained(
     assert controls == tuple(CONTROLS.values()) and loaded.n_controls == 3
     for a, b in zip(arrays(loaded), arrays(fit.model), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # and the same field: the skeleton load_controlled reads into is built as the trained one is
+    state, t, c = jnp.array([0.3, -0.2, 0.4, 0.2, -0.1, 0.3]), jnp.asarray(1.0), jnp.array([0.5, -0.2, 0.1])
+    np.testing.assert_array_equal(np.asarray(loaded(state, t, c)), np.asarray(fit.model(state, t, c)))
     # the command scores the stored run on the stored data as the API scores the trained model
     path = write_controlled(data.dataset, data.controls, tmp_path / "controls.h5")
     code, out, err = run_cli(["turning", "evaluate", str(run), str(path), "--horizon", "5", "--json"], capsys)
