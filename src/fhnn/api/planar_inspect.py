@@ -16,6 +16,7 @@ import dataclasses
 import os
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from fhnn.api.planar import load_turning
@@ -92,13 +93,29 @@ def inspect_turning(
     )
     if folder is None:
         return found
+    return dataclasses.replace(found, files=write_inspection(folder, found.coefficients, samples))
+
+
+def write_inspection(
+    folder: Path, coefficients: pd.DataFrame, samples: dict[str, np.ndarray]
+) -> tuple[Path, ...]:
+    """Write ``coefficients.csv`` (``coefficients``), ``damping.csv`` (the columns ``samples``)
+    and ``damping.png`` (:func:`~fhnn.experiments.planar_damping_figure.damping_figure` of
+    ``samples``) into ``folder``, each whole or not at all; returns their paths."""
     written = []
-    for name, table in ((COEFFICIENTS_FILE, found.coefficients), (DAMPING_FILE, found.damping)):
+    for name, table in ((COEFFICIENTS_FILE, coefficients), (DAMPING_FILE, pd.DataFrame(samples))):
         with atomic_output(folder / name) as tmp:
             table.to_csv(tmp, index=False)
         written.append(folder / name)
     written.append(damping_figure(samples, folder / DAMPING_FIGURE))
-    return dataclasses.replace(found, files=tuple(written))
+    return tuple(written)
 
 
-__all__ = ["COEFFICIENTS_FILE", "DAMPING_FIGURE", "DAMPING_FILE", "TurningCoefficients", "inspect_turning"]
+__all__ = [
+    "COEFFICIENTS_FILE",
+    "DAMPING_FIGURE",
+    "DAMPING_FILE",
+    "TurningCoefficients",
+    "inspect_turning",
+    "write_inspection",
+]

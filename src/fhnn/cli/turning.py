@@ -18,6 +18,13 @@ from fhnn.api.planar_controls_files import (
     is_controlled_run,
     train_controlled_run,
 )
+from fhnn.api.planar_ensemble import (
+    evaluate_turning_ensemble,
+    inspect_turning_ensemble,
+    is_turning_ensemble,
+    predict_turning_ensemble,
+    train_turning_ensemble,
+)
 from fhnn.api.planar_inspect import inspect_turning
 from fhnn.api.planar_predict import predict_turning
 from fhnn.cli import render
@@ -69,14 +76,24 @@ def train(
     output: Annotated[Path, typer.Option("--output", "-o", help="Run folder to write (new).")],
     adam_steps: Annotated[int | None, typer.Option(help="Adam steps [default: 4000].")] = None,
     lbfgs_steps: Annotated[int | None, typer.Option(help="L-BFGS iterations [default: 1000].")] = None,
-    seed: Annotated[int, typer.Option(help="Seed of the weights.")] = 0,
+    seed: Annotated[int, typer.Option(help="Seed of the weights (an ensemble's first member's).")] = 0,
+    seeds: Annotated[
+        int,
+        typer.Option(
+            help="Members of an ensemble (seeds SEED, SEED+1, ...), each on its own bootstrap of the "
+            "training tracks; 1: a single run."
+        ),
+    ] = 1,
     damping: Annotated[
         str, typer.Option(help="Damping: diagonal (one per axis) or full (axes coupled, still dissipative).")
     ] = "diagonal",
     quiet: QuietOption = False,
 ) -> None:
-    """Train the 3-DOF FHNN (flow, added masses, damping) and write model.eqx and run.json; on data
-    imported with --controls, also the map from the controls to the body's forces."""
+    """Train the 3-DOF FHNN (flow, added masses, damping) and write model.eqx and run.json (with
+    --seeds N: an ensemble, one such run folder per member); on data imported with --controls, also
+    the map from the controls to the body's forces."""
+    if seeds < 1:
+        raise ConfigError(f"--seeds must be at least 1, got {seeds}")
     given = {"adam_steps": adam_steps, "lbfgs_steps": lbfgs_steps, "seed": seed}
     config = PlanarTrainConfig(**{k: v for k, v in given.items() if v is not None})
     model = PlanarModelConfig(damping=damping)
@@ -85,6 +102,20 @@ def train(
         if not quiet and (step % 500 == 0 or step == steps):
             render.note(f"{phase} {step}/{steps}: training loss {loss:.3e}")
 
+    if seeds > 1:
+        if is_controlled(data):
+            raise ConfigError("--seeds: ensembles are trained on data with known forces, not logged controls")
+        fits = train_turning_ensemble(
+            data, output, members=seeds, model=model, training=config, progress=progress
+        )
+        trained = sum(fit is not None for fit in fits)
+        render.stdout.print(
+            f"wrote {output}: an ensemble of {seeds} members ({trained} trained now, "
+            f"{seeds - trained} kept); `fhnn turning inspect` gives their intervals",
+            soft_wrap=True,
+            highlight=False,
+        )
+        return
     if is_controlled(data):
         fit = train_controlled_run(data, output, model=model, training=config, progress=progress)
         render.stdout.print(
@@ -121,6 +152,9 @@ def evaluate(
     """Forecast errors and added masses; for a simulation also damping and flow against its truth."""
     if horizon <= 0:
         raise ConfigError(f"--horizon must be positive, got {horizon:g}")
+    if is_turning_ensemble(run):
+        _evaluate_ensemble(run, data, horizon, as_json, figure)
+        return
     controlled = is_controlled_run(run)
     evaluate, draw = (
         (evaluate_controlled_run, figure_controlled_run) if controlled else (evaluate_turning, figure_turning)
@@ -165,7 +199,11 @@ def inspect(
     max_points: Annotated[int, typer.Option(help="At most this many covered relative velocities.")] = 2000,
 ) -> None:
     """Added masses and damping over the relative velocities the training data cover: prints them
-    (beside the truth for a simulation) and writes coefficients.csv, damping.csv and damping.png."""
+    (beside the truth for a simulation) and writes coefficients.csv, damping.csv and damping.png;
+    for an ensemble, the members' median and 90 % interval."""
+    if is_turning_ensemble(run):
+        _inspect_ensemble(run, data, out, max_points)
+        return
     found = inspect_turning(run, data, out=out, max_points=max_points)
     table = Table()
     for column in ("quantity", "learned", "unit", "true", "error"):
@@ -207,8 +245,8 @@ def predict(
 ) -> None:
     """Continue each observed track from its last estimated state (pose and body-frame velocity,
     smoothed as `fhnn import` does), its last forces or controls held; write traj_id, t, x, y,
-    heading, u, v, r."""
-    forecast = predict_turning(
+    heading, u, v, r (an ensemble: the members' median, each with _lo and _hi, a 90 % interval)."""
+    forecast = (predict_turning_ensemble if is_turning_ensemble(run) else predict_turning)(
         run,
         history,
         duration,
@@ -221,6 +259,56 @@ def predict(
     if not quiet:
         tracks = forecast["traj_id"].nunique()
         render.note(f"wrote {output}: {tracks} tracks continued {duration:g} s, {len(forecast)} rows")
+
+
+def _evaluate_ensemble(run: Path, data: Path, horizon: float, as_json: bool, figure: Path | None) -> None:
+    """``turning evaluate`` of an ensemble: each member's forecast errors and masses."""
+    if figure is not None:
+        raise ConfigError(f"--figure draws one run: give a member, e.g. {run / 'seed-0'}")
+    reports = evaluate_turning_ensemble(run, data, horizon=horizon)
+    if as_json:
+        render.stdout.print_json(json.dumps(reports))
+        return
+    for report in reports:
+        f, masses = report["forecast"], report["added_mass"]
+        render.stdout.print(
+            f"{report['member']}: forecast at {horizon:g} s RMSE(pos) {f['rmse_pos']:.3g} m, "
+            f"RMSE(heading) {f['rmse_heading']:.3g} rad; added masses "
+            + ", ".join(f"{k} {v['learned']:.4g}" for k, v in masses.items()),
+            soft_wrap=True,
+            highlight=False,
+            markup=False,
+        )
+
+
+def _inspect_ensemble(run: Path, data: Path, out: Path | None, max_points: int) -> None:
+    """``turning inspect`` of an ensemble: the members' median and interval per quantity."""
+    found = inspect_turning_ensemble(run, data, out=out, max_points=max_points)
+    table = Table(title=f"{found.members} members: median and 90 % interval")
+    for column in ("quantity", "median", "90 % interval", "unit", "true", "error", "holds"):
+        table.add_column(column, justify="left" if column in ("quantity", "unit") else "right")
+    for row in found.coefficients.to_dict("records"):
+        name = row["name"]
+        truth = _given(row.get("true"))
+        table.add_row(
+            name,
+            f"{row['value']:.4g}",
+            f"{row['lo']:.4g} to {row['hi']:.4g}",
+            row["unit"],
+            f"{row['true']:.4g}" if truth else "",
+            f"{100 * row['rel_error']:.2g} %" if truth else "",
+            ("yes" if row["inside"] else "no") if truth else "",
+        )
+    render.stdout.print(table)
+    over = [row["over"] for row in found.coefficients.to_dict("records") if isinstance(row.get("over"), str)]
+    render.stdout.print(
+        "damping: X_d/u_r is the least-squares ratio of the surge damping to u_r (and so for sway and "
+        f"yaw) over the covered relative velocities: {', '.join(over)}",
+        soft_wrap=True,
+        highlight=False,
+        markup=False,
+    )
+    render.note(f"wrote {', '.join(str(p) for p in found.files)}")
 
 
 def _given(value: object) -> bool:

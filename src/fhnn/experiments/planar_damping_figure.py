@@ -18,7 +18,8 @@ from fhnn.files import atomic_output
 def damping_figure(samples: dict[str, np.ndarray], path: str | os.PathLike[str]) -> Path:
     """Three panels, surge, sway and yaw: the damping force or moment at each covered relative
     velocity (:func:`fhnn.evaluation.planar_coefficients.damping_samples`) against that axis's
-    relative velocity, learned (blue) and, where ``samples`` has it, true (grey); writes a PNG to
+    relative velocity, learned (blue; with ``X_d_lo`` and ``X_d_hi`` and the like, an ensemble's
+    interval as a bar at each point) and, where ``samples`` has it, true (grey); writes a PNG to
     ``path`` and returns its path. The other axes' velocities vary along each panel's points, so a
     panel is a cloud, not a curve, where the damping couples them."""
     fig, axes = plt.subplots(1, 3, figsize=(11.0, 3.4))
@@ -26,6 +27,8 @@ def damping_figure(samples: dict[str, np.ndarray], path: str | os.PathLike[str])
         x = samples[speed]
         if f"true_{force}" in samples:
             ax.plot(x, samples[f"true_{force}"], ".", color="0.6", ms=3, label="true")
+        if f"{force}_lo" in samples:
+            ax.vlines(x, samples[f"{force}_lo"], samples[f"{force}_hi"], color="tab:blue", lw=0.6, alpha=0.3)
         ax.plot(x, samples[force], ".", color="tab:blue", ms=2, label="learned")
         ax.set_xlabel(f"{speed} [{speed_unit}]")
         ax.set_ylabel(f"{force} [{force_unit}]")
