@@ -55,6 +55,9 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
     "Does it learn a body that turns?": {
         "turning.py --data-seed 3": ["turning_seed3"],
         "turning.py --data-seed 4": ["turning_seed4"],
+        "turning_intervals.py --data-seed 20": ["turning_intervals_seed20"],
+        "turning_intervals.py --data-seed 21": ["turning_intervals_seed21"],
+        "turning_intervals.py --data-seed 22 --obs-noise 0": ["turning_intervals_seed22_noise0"],
         "station_keeping.py --data-seed 3": ["station_keeping_seed3"],
         "shipmmg_check.py --data-seed 3": ["shipmmg_seed3"],
         "shipmmg_check.py --data-seed 3 --controls --no-track-fit": ["shipmmg_controls_seed3"],

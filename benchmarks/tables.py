@@ -400,6 +400,36 @@ def render_turning(record: dict[str, Any]) -> str:
     return _table(header, rows)
 
 
+def render_turning_intervals(record: dict[str, Any]) -> str:
+    """A turning body's ensemble intervals against the truth on one data set."""
+    header = ["quantity", "true", "median", "error", "90 % interval", "width", "holds the truth"]
+    rows = []
+    for q in record["quantities"]:
+        holds = "yes" if q["inside"] else "**no**"
+        if "band_holds" in q:
+            holds += f" (pointwise band: {100 * q['band_holds']:.0f} %)"
+        rows.append(
+            [
+                f"`{q['name']}`",
+                _g(q["true"], 4),
+                _g(q["median"], 4),
+                _pct(q["rel_error"]),
+                f"{_g(q['lo'], 4)} to {_g(q['hi'], 4)}",
+                _pct(q["rel_width"]),
+                holds,
+            ]
+        )
+    forecasts = ", ".join(
+        f"{f['member']} {_g(f['rmse_pos'])} m / {_g(f['rmse_heading'])} rad" for f in record["forecasts"]
+    )
+    caption = (
+        f"`{record['scenario']}`, data seed {record['data_seed']} ({record['seed_role']}), noise "
+        f"{_g(record['obs_noise'])} on every state entry, {record['members']} members; the members' "
+        f"RMSE(pos) / RMSE(heading) at 5 s: {forecasts}."
+    )
+    return caption + "\n\n" + _table(header, rows)
+
+
 def render_turning_table(record: dict[str, Any]) -> str:
     """The 3-DOF model trained on a noisy, irregular table of its own scenarios."""
     runs = record["runs"]
@@ -584,6 +614,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
         "calibration",
         "turning_choice",
         "turning_table",
+        "turning_intervals",
         "turning",
         "station_keeping",
         "shipmmg_controls",

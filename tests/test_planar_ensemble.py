@@ -3,6 +3,7 @@ intervals for the masses, the damping and forecasts (:mod:`fhnn.api.planar_ensem
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -21,7 +22,7 @@ from fhnn.api.planar_ensemble import (
     train_turning_ensemble,
 )
 from fhnn.api.planar_predict import predict_turning
-from fhnn.data.planar import read_planar, simulate_planar
+from fhnn.data.planar import read_planar, simulate_planar, write_planar
 from fhnn.data.planar_table import observed_table
 from fhnn.errors import ConfigError, DataFormatError
 from fhnn.models.planar import planar_arguments
@@ -184,6 +185,13 @@ def test_inspect_and_predict_an_ensemble_from_the_command_line(ensemble, capsys)
     table = pd.read_csv(ens / "coefficients.csv")
     assert list(table["name"]) == ["m_11", "m_22", "m_66", "X_d/u_r", "Y_d/v_r", "N_d/r_r"]
     assert len(pd.read_csv(ens / "damping.csv")) == 50 and (ens / "damping.png").stat().st_size > 10_000
+    assert "noisy" not in err  # noise-free data: no caution; noisy data: said, the numbers unchanged
+    noisy = write_planar(dataclasses.replace(read_planar(data), obs_noise=1e-3), folder / "noisy.h5")
+    code, out_noisy, err = run_cli(["turning", "inspect", str(ens), str(noisy), "--max-points", "50"], capsys)
+    assert code == 0 and out_noisy == out
+    assert "the data are noisy (noise level 0.001): the intervals hold the members' spread" in " ".join(
+        err.split()
+    )
     # a twin ensemble: both members are seed-4's model
     twin = folder / "twin"
     shutil.copytree(ens, twin)

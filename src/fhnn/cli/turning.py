@@ -29,6 +29,7 @@ from fhnn.api.planar_inspect import inspect_turning
 from fhnn.api.planar_predict import predict_turning
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, QuietOption, TimeUnitOption, app
+from fhnn.data.planar import read_planar
 from fhnn.errors import ConfigError
 from fhnn.models.planar import PlanarModelConfig
 from fhnn.physics.planar_scenarios import PLANAR_SCENARIOS
@@ -308,6 +309,13 @@ def _inspect_ensemble(run: Path, data: Path, out: Path | None, max_points: int) 
         highlight=False,
         markup=False,
     )
+    noise = read_planar(data).obs_noise
+    if noise > 0:
+        render.note(
+            f"the data are noisy (noise level {noise:.3g}): the intervals hold the members' spread, not "
+            "the bias that noise on the states gives the fit; on simulated noisy data they missed the "
+            "truth (the documentation's Benchmarks page)"
+        )
     render.note(f"wrote {', '.join(str(p) for p in found.files)}")
 
 
