@@ -70,7 +70,6 @@ def ensemble(planar_data, tmp_path_factory):
     """The data file and the folder holding ``ens``: ``fhnn turning train DATA -o ens --seeds 2
     --seed 4`` (a few Adam steps)."""
     from fhnn.cli.app import main
-    from fhnn.data.planar import write_planar
 
     folder = tmp_path_factory.mktemp("planar_ensemble")
     data = write_planar(planar_data, folder / "t.h5")

@@ -284,15 +284,16 @@ def _evaluate_ensemble(run: Path, data: Path, horizon: float, as_json: bool, fig
 
 def _inspect_ensemble(run: Path, data: Path, out: Path | None, max_points: int) -> None:
     """``turning inspect`` of an ensemble: the members' median and interval per quantity."""
-    found = inspect_turning_ensemble(run, data, out=out, max_points=max_points)
+    dataset = read_planar(data)  # once: for the intervals and for its noise level
+    found = inspect_turning_ensemble(run, dataset, out=out, max_points=max_points)
+    rows = found.coefficients.to_dict("records")
     table = Table(title=f"{found.members} members: median and 90 % interval")
     for column in ("quantity", "median", "90 % interval", "unit", "true", "error", "holds"):
         table.add_column(column, justify="left" if column in ("quantity", "unit") else "right")
-    for row in found.coefficients.to_dict("records"):
-        name = row["name"]
+    for row in rows:
         truth = _given(row.get("true"))
         table.add_row(
-            name,
+            row["name"],
             f"{row['value']:.4g}",
             f"{row['lo']:.4g} to {row['hi']:.4g}",
             row["unit"],
@@ -301,7 +302,7 @@ def _inspect_ensemble(run: Path, data: Path, out: Path | None, max_points: int) 
             ("yes" if row["inside"] else "no") if truth else "",
         )
     render.stdout.print(table)
-    over = [row["over"] for row in found.coefficients.to_dict("records") if isinstance(row.get("over"), str)]
+    over = [row["over"] for row in rows if isinstance(row.get("over"), str)]
     render.stdout.print(
         "damping: X_d/u_r is the least-squares ratio of the surge damping to u_r (and so for sway and "
         f"yaw) over the covered relative velocities: {', '.join(over)}",
@@ -309,7 +310,7 @@ def _inspect_ensemble(run: Path, data: Path, out: Path | None, max_points: int) 
         highlight=False,
         markup=False,
     )
-    noise = read_planar(data).obs_noise
+    noise = dataset.obs_noise
     if noise > 0:
         render.note(
             f"the data are noisy (noise level {noise:.3g}): the intervals hold the members' spread, not "
