@@ -400,11 +400,9 @@ def render_turning(record: dict[str, Any]) -> str:
     return _table(header, rows)
 
 
-def render_turning_intervals(record: dict[str, Any]) -> str:
-    """A turning body's ensemble intervals against the truth on one data set."""
-    header = ["quantity", "true", "median", "error", "90 % interval", "width", "holds the truth"]
+def _interval_rows(quantities: list[dict[str, Any]]) -> list[list[str]]:
     rows = []
-    for q in record["quantities"]:
+    for q in quantities:
         holds = "yes" if q["inside"] else "**no**"
         if "band_holds" in q:
             holds += f" (pointwise band: {100 * q['band_holds']:.0f} %)"
@@ -419,15 +417,47 @@ def render_turning_intervals(record: dict[str, Any]) -> str:
                 holds,
             ]
         )
-    forecasts = ", ".join(
-        f"{f['member']} {_g(f['rmse_pos'])} m / {_g(f['rmse_heading'])} rad" for f in record["forecasts"]
-    )
+    return rows
+
+
+def _member_forecasts(forecasts: list[dict[str, Any]]) -> str:
+    return ", ".join(f"{f['member']} {_g(f['rmse_pos'])} m / {_g(f['rmse_heading'])} rad" for f in forecasts)
+
+
+def render_turning_intervals(record: dict[str, Any]) -> str:
+    """A turning body's ensemble intervals against the truth on one data set (and, after a track
+    fit of each member, again)."""
+    header = ["quantity", "true", "median", "error", "90 % interval", "width", "holds the truth"]
+    if record.get("route") == "table":
+        noise = (
+            f"noise {_g(record['obs_noise'])} on the observed positions [m] and heading [rad] only, "
+            "imported as a user's table (poses smoothed, velocities estimated)"
+        )
+        scored = "against the observed poses"
+    else:
+        noise = f"noise {_g(record['obs_noise'])} on every state entry"
+        scored = "against the truth"
     caption = (
-        f"`{record['scenario']}`, data seed {record['data_seed']} ({record['seed_role']}), noise "
-        f"{_g(record['obs_noise'])} on every state entry, {record['members']} members; the members' "
-        f"RMSE(pos) / RMSE(heading) at 5 s: {forecasts}."
+        f"`{record['scenario']}`, data seed {record['data_seed']} ({record['seed_role']}), {noise}, "
+        f"{record['members']} members; the members' RMSE(pos) / RMSE(heading) at 5 s {scored}: "
+        f"{_member_forecasts(record['forecasts'])}."
     )
-    return caption + "\n\n" + _table(header, rows)
+    text = caption + "\n\n" + _table(header, _interval_rows(record["quantities"]))
+    if "track_fit" in record:
+        tracked = record["track_fit"]
+        fits = "; ".join(
+            f"{f['member']} objective {_g(f['objective_first'])} → {_g(f['objective_last'])}, validation "
+            f"misfit {_g(f['val_before'])} → {_g(f['val_after'])}, {'kept' if f['kept'] else 'rejected'}"
+            for f in tracked["fits"]
+        )
+        text += (
+            f"\n\nEach member then fitted to its bootstrap's observed poses (track fit: "
+            f"{_g(tracked['config']['window'])} s windows, {tracked['config']['steps']} L-BFGS iterations; "
+            f"noise variances per residual): {fits}. Their RMSE(pos) / RMSE(heading) at 5 s: "
+            f"{_member_forecasts(tracked['forecasts'])}.\n\n"
+        )
+        text += _table(header, _interval_rows(tracked["quantities"]))
+    return text
 
 
 def render_turning_table(record: dict[str, Any]) -> str:

@@ -21,7 +21,7 @@ from fhnn.cli.options import app
 from fhnn.data.dataset import read_dataset, write_dataset
 from fhnn.data.observation import observe
 from fhnn.data.table import read_table, write_table
-from fhnn.errors import ConfigError
+from fhnn.errors import ConfigError, DataFormatError
 from fhnn.evaluation.metrics import METRICS, Metric, register_metric
 from fhnn.experiments import figures, tables
 from fhnn.models.fhnn import FHNNConfig
@@ -165,6 +165,23 @@ def test_cli_and_api_inspect_and_predict_give_the_same_numbers(simulated: Path, 
     frame = forecast.to_pandas()
     for column in ("t", "x", "y", "vx", "vy"):
         np.testing.assert_allclose(printed[column], frame[column], rtol=1e-12, atol=0)
+
+
+def test_cli_and_api_info_describe_the_same_data_set(simulated: Path, capsys) -> None:
+    """``fhnn info --json`` prints ``fhnn.info``; it takes the file or the data set read from it,
+    and refuses a file that is not a data set in one line."""
+    data = simulated / "data.h5"
+    code, out, err = cli(["info", str(data), "--json"], capsys)
+    assert code == 0, err
+    described = fhnn.info(data)
+    assert json.loads(out) == json.loads(json.dumps(described, sort_keys=True))
+    assert described == fhnn.info(read_dataset(data))
+    assert described["scenario"] == "steady_vortex" and described["splits"]["train"]["n_traj"] == 4
+    (simulated / "notes.h5").write_text("not HDF5")
+    with pytest.raises(DataFormatError, match="notes.h5"):
+        fhnn.info(simulated / "notes.h5")
+    code, _, err = cli(["info", str(simulated / "notes.h5")], capsys)
+    assert code != 0 and len(err.strip().splitlines()) == 1 and "notes.h5" in err
 
 
 def test_the_notebook_example_runs_from_a_dataframe(table_file: Path, tmp_path: Path) -> None:

@@ -299,6 +299,16 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
     assert (
         code == 0 and "a turning body's data set under known forces; scenario turning_vortex, seed 4" in out
     )
+    # fhnn.info, what the command prints, takes a turning body's file or data set as well
+    import fhnn
+    from fhnn.api.planar_info import turning_info
+    from fhnn.data.planar import read_planar as read_turning
+
+    code, out, _ = run(["info", str(data), "--json"])
+    described = fhnn.info(data)
+    assert code == 0 and json.loads(out) == json.loads(json.dumps(described))
+    assert described == turning_info(data) == fhnn.info(read_turning(data))
+    assert described["splits"]["train"]["trajectories"] == 4 and described["mass"] == 10.0
     code, out, err = run(["turning", "inspect", str(folder), str(data), "--max-points", "50"])
     assert code == 0, err
     said = " ".join(out.split())

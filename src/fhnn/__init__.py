@@ -31,7 +31,7 @@ _PUBLIC = {
     "simulate": "fhnn.api.data",
     "import_table": "fhnn.api.data",
     "from_table": "fhnn.api.data",
-    "info": "fhnn.api.data",
+    "info": "fhnn.api.describe",
     "train": "fhnn.api.train",
     "evaluate": "fhnn.api.evaluate",
     "inspect": "fhnn.api.inspect",

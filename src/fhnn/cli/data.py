@@ -12,9 +12,10 @@ from rich.table import Table
 from fhnn.api.data import import_table as import_data
 from fhnn.api.data import info as data_info
 from fhnn.api.data import simulate as simulate_data
+from fhnn.api.describe import info as describe
+from fhnn.api.describe import is_turning
 from fhnn.api.planar import import_turning
 from fhnn.api.planar_controls_files import import_controlled_file
-from fhnn.api.planar_info import is_turning_data, turning_info
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, ForcingHoldOption, TimeUnitOption, app
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
@@ -294,18 +295,13 @@ def info(
     covered; for a turning body's, the body, the split sizes and the ranges of its states."""
     import json
 
-    if is_turning_data(file):
-        described = turning_info(file)
-        if as_json:
-            typer.echo(json.dumps(described, indent=2, sort_keys=True))
-        else:
-            _turning_info(described, file)
-        return
-    summary = data_info(file)
+    described = describe(file)
     if as_json:
-        typer.echo(json.dumps(summary, indent=2, sort_keys=True))
+        typer.echo(json.dumps(described, indent=2, sort_keys=True))
+    elif is_turning(file):
+        _turning_info(described, file)
     else:
-        render.summary(summary, str(file))
+        render.summary(described, str(file))
 
 
 @app.command()
