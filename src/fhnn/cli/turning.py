@@ -314,8 +314,9 @@ def _inspect_ensemble(run: Path, data: Path, out: Path | None, max_points: int) 
     if noise > 0:
         render.note(
             f"the data are noisy (noise level {noise:.3g}): the intervals hold the members' spread, not "
-            "the bias that noise on the states gives the fit; on simulated noisy data they missed the "
-            "truth (the documentation's Benchmarks page)"
+            "the bias that noise gives the fit; on simulated noisy data some missed the truth, most "
+            "with noise on every state entry, fewer from an imported table of noisy poses (the "
+            "documentation's Benchmarks page)"
         )
     render.note(f"wrote {', '.join(str(p) for p in found.files)}")
 
