@@ -59,6 +59,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "turning_intervals.py --data-seed 21": ["turning_intervals_seed21"],
         "turning_intervals.py --data-seed 22 --obs-noise 0": ["turning_intervals_seed22_noise0"],
         "turning_intervals.py --data-seed 23 --table": ["turning_intervals_seed23_table"],
+        "turning_intervals.py --data-seed 23 --table --track-fit": ["turning_intervals_seed23_table_tracks"],
         "turning_intervals.py --data-seed 24 --table": ["turning_intervals_seed24_table"],
         "station_keeping.py --data-seed 3": ["station_keeping_seed3"],
         "shipmmg_check.py --data-seed 3": ["shipmmg_seed3"],
