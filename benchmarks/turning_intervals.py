@@ -52,6 +52,7 @@ from fhnn.api.planar_ensemble import (
 )
 from fhnn.data.planar import PlanarDataset
 from fhnn.data.planar_table import observed_table
+from fhnn.training.ensemble import read_seeds
 from fhnn.training.planar_ensemble import bootstrap_planar
 from fhnn.training.planar_tracks import PlanarTrackConfig, fit_planar_tracks
 
@@ -99,7 +100,7 @@ def member_forecasts(members: list[dict]) -> list[dict]:
 def track_fitted(folder: Path, fits: list, trained_on: PlanarDataset, truth: PlanarDataset) -> dict:
     """Each member fitted to the observed poses of its own bootstrap (the track fit's defaults),
     and the fitted members' intervals and forecasts."""
-    seeds = json.loads((folder / "ensemble.json").read_text())["seeds"]
+    seeds = read_seeds(folder)
     models, runs = [], []
     for seed, fit in zip(seeds, fits, strict=True):
         tracks = fit_planar_tracks(fit.model, bootstrap_planar(trained_on, seed), PlanarTrackConfig())
@@ -163,10 +164,11 @@ def main() -> None:
         imported = import_turning(pd.DataFrame(columns), **body, seed=0)
         # the import with the simulator's truth beside it, for the comparison only
         data = dataclasses.replace(imported, params=clean.params)
-        found = float(imported.obs_noise)
-        print(f"imported: position noise estimated {found:.3g} m (given {args.obs_noise:g})", flush=True)
+        estimated = float(imported.obs_noise)
+        print(f"imported: position noise estimated {estimated:.3g} m (given {args.obs_noise:g})", flush=True)
     else:
         data = simulate_turning(SCENARIO, seed=args.data_seed, obs_noise=args.obs_noise)
+    trained_on = imported or data  # what the members see; ``data`` carries the truth beside it
 
     def progress(phase: str, step: int, steps: int, loss: float) -> None:
         if step % 1000 == 0 or step == steps:
@@ -176,9 +178,9 @@ def main() -> None:
     name = f"turning_intervals_seed{args.data_seed}{noise}{'_table' if args.table else ''}"
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "ens"
-        fits = train_turning_ensemble(imported or data, folder, members=args.members, progress=progress)
+        fits = train_turning_ensemble(trained_on, folder, members=args.members, progress=progress)
         found = inspect_turning_ensemble(folder, data)
-        members = evaluate_turning_ensemble(folder, imported or data)
+        members = evaluate_turning_ensemble(folder, trained_on)
         rows = quantity_rows(found.coefficients.to_dict("records"))
         forecasts = member_forecasts(members)
         held = sum(r["inside"] for r in rows)
@@ -199,7 +201,7 @@ def main() -> None:
         }
         write(RESULTS / f"{name}.json", result)
         if args.track_fit:
-            tracked = track_fitted(folder, fits, imported or data, data)
+            tracked = track_fitted(folder, fits, trained_on, data)
             print(f"after the track fit the intervals hold the truth for {tracked['held']} of {len(rows)}")
             result |= {"track_fit": tracked, "wall_seconds": time.perf_counter() - start}
             write(RESULTS / f"{name}_tracks.json", result)
