@@ -263,10 +263,12 @@ def run(
     damping_inputs: str = "speeds",
     controls: bool = False,
     width: int | None = None,
+    grow: tuple[float, ...] = (),
 ) -> dict:
     """The check's stages: the one-step model (``one_step``, or ``controls`` with a learned
     actuator map), then one track fit from it per window in ``windows`` (``track_fit`` if one,
-    else ``track_fit_<W>s``; prefixed ``controls_`` with the map)."""
+    else ``track_fit_<W>s``; prefixed ``controls_`` with the map), then a chain of track fits
+    over the windows in ``grow``, each from the model the one before kept (``grow_<W>s``)."""
     from fhnn.api.planar import train_turning
     from fhnn.api.planar_controls import train_controlled
     from fhnn.training.planar import PlanarTrainConfig
@@ -295,14 +297,20 @@ def run(
     first = prefix or "one_step"
     report = {first: judged_model(fit.model)}
     report[first].update(train_seconds=fit.seconds, val_loss=fit.val_loss)
-    for window in windows:  # none: the one-step model only
-        tracks = fit_planar_tracks(fit.model, dataset, PlanarTrackConfig(steps=track_steps, window=window))
+    chain = fit.model
+    stages = [(w, False) for w in windows] + [(w, True) for w in grow]
+    for window, grown in stages:  # none: the one-step model only
+        start_model = chain if grown else fit.model
+        tracks = fit_planar_tracks(start_model, dataset, PlanarTrackConfig(steps=track_steps, window=window))
         print(
-            f"  track fit, {window:g} s windows: val misfit {tracks.val_before:.3g} -> "
-            f"{tracks.val_after:.3g}, kept {tracks.kept}",
+            f"  track fit{' (grown)' if grown else ''}, {window:g} s windows: val misfit "
+            f"{tracks.val_before:.3g} -> {tracks.val_after:.3g}, kept {tracks.kept}",
             flush=True,
         )
-        name = "track_fit" if len(windows) == 1 else f"track_fit_{window:g}s"
+        if grown:
+            chain, name = tracks.model, f"grow_{window:g}s"
+        else:
+            name = "track_fit" if len(windows) == 1 else f"track_fit_{window:g}s"
         name = f"{prefix}_{name}" if prefix else name
         report[name] = judged_model(tracks.model)
         report[name].update(
@@ -498,6 +506,12 @@ def main() -> None:
         default="90",  # chosen on seed 1 among 10, 30, 60 and 90 s (docs/design/turning.md)
         help="the track fit's window lengths [s], comma-separated: one fit from the one-step model each",
     )
+    p.add_argument(
+        "--grow",
+        default="",
+        help="window lengths [s], comma-separated, of a chain of track fits after the others, each "
+        "from the model the one before kept (growing windows, as multiple shooting's continuation)",
+    )
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/shipmmg_seedN.json)")
     args = p.parse_args()
     if args.floor:
@@ -507,9 +521,10 @@ def main() -> None:
         args.data_seed, args.damping, args.position_noise, args.heading_noise, args.adam_steps,
         () if args.no_track_fit else tuple(float(w) for w in args.track_windows.split(",")),
         args.track_steps, args.damping_inputs, args.controls, args.width,
+        tuple(float(w) for w in args.grow.split(",") if w.strip()),
     )  # fmt: skip
     targets = CONTROLS_TARGETS if args.controls else TARGETS
-    for name in [k for k in report if k in ("one_step", "controls") or "track_fit" in k]:
+    for name in [k for k in report if k in ("one_step", "controls") or "track_fit" in k or "grow_" in k]:
         print(summary(name, report[name], targets))
     record = {
         **stamp(),
@@ -521,6 +536,7 @@ def main() -> None:
         "heading_noise": args.heading_noise,
         "adam_steps": args.adam_steps,
         "width": args.width,
+        "grow": args.grow or None,
         "forcing": "rudder and propeller" if args.controls else "forces",
         "targets": targets,
         "published_nrmse": PUBLISHED_NRMSE,
