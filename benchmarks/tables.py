@@ -556,9 +556,11 @@ def render_shipmmg_controls(record: dict[str, Any]) -> str:
 
 
 def render_shipmmg(record: dict[str, Any]) -> str:
-    """The 3-DOF model against KVLCC2 in shipmmg: the one-step model and the track fit beside the
-    targets."""
-    stages = [(n, part) for n, part in record.items() if n == "one_step" or n.startswith("track_fit")]
+    """The 3-DOF model against KVLCC2 in shipmmg: the one-step model, the track fits and any chain
+    of them over growing windows (``grow_<W>s``, each from the one before) beside the targets."""
+    stages = [
+        (n, part) for n, part in record.items() if n == "one_step" or n.startswith(("track_fit", "grow_"))
+    ]
     targets = record["targets"]
     measures = [
         *[
