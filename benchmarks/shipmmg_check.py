@@ -319,6 +319,7 @@ def run(
             val_before=tracks.val_before,
             val_after=tracks.val_after,
             kept=tracks.kept,
+            windows_held=windows_held(dataset, window),
             iterations=len(tracks.history),
             objective_first_last=tracks.history[:1] + tracks.history[-1:],
         )
@@ -328,6 +329,42 @@ def run(
         wall_seconds=time.perf_counter() - start,
     )
     return report
+
+
+def windows_held(dataset, window: float) -> dict[str, list[int]]:
+    """How many trajectories of the train and val splits hold one ``window`` [s] of the track fit
+    (``[held, all]`` per split): a trajectory shorter than the window's sample count gives no
+    window (:func:`fhnn.training.planar_tracks.make_windows`), so the fit and its guard see only
+    the others."""
+    from fhnn.training.planar_tracks import window_size
+
+    size = window_size(dataset.splits["train"], window)
+    return {
+        split: [
+            int(np.sum(np.asarray(dataset.splits[split].lengths) >= size)),
+            len(dataset.splits[split].lengths),
+        ]
+        for split in ("train", "val")
+    }
+
+
+def held_report(seeds: list[int], windows: list[float], position_noise: float, heading_noise: float) -> str:
+    """For each data seed's known-force table, how many manoeuvres of each split hold each window."""
+    lines = ["seed  window [s]  samples  train held  val held  (trajectory lengths train / val)"]
+    from fhnn.training.planar_tracks import window_size
+
+    for seed in seeds:
+        _, imported, _ = imported_table(seed, position_noise, heading_noise)
+        lengths = {k: np.asarray(imported.splits[k].lengths) for k in ("train", "val")}
+        for window in windows:
+            held = windows_held(imported, window)
+            size = window_size(imported.splits["train"], window)
+            span = " / ".join(f"{v.min()}-{v.max()}" for v in lengths.values())
+            lines.append(
+                f"{seed:>4}  {window:>10g}  {size:>7}  {held['train'][0]:>4} of {held['train'][1]:<4}"
+                f"  {held['val'][0]:>3} of {held['val'][1]:<3}  ({span})"
+            )
+    return "\n".join(lines)
 
 
 def progress(phase: str, step: int, steps: int, loss: float) -> None:
@@ -512,10 +549,24 @@ def main() -> None:
         help="window lengths [s], comma-separated, of a chain of track fits after the others, each "
         "from the model the one before kept (growing windows, as multiple shooting's continuation)",
     )
+    p.add_argument(
+        "--held",
+        default="",
+        help="only count, for these data seeds (comma-separated) and the --track-windows, the "
+        "manoeuvres that hold one window; printed, and written to --out if given",
+    )
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/shipmmg_seedN.json)")
     args = p.parse_args()
     if args.floor:
         print(json.dumps(exact_floor(args.data_seed, args.position_noise, args.heading_noise)))
+        return
+    if args.held:
+        seeds = [int(v) for v in args.held.split(",")]
+        windows = [float(w) for w in args.track_windows.split(",")]
+        output = held_report(seeds, windows, args.position_noise, args.heading_noise)
+        print(output)
+        if args.out:
+            Path(args.out).write_text(json.dumps({**stamp(), "seeds": seeds, "output": output}, indent=1))
         return
     report = run(
         args.data_seed, args.damping, args.position_noise, args.heading_noise, args.adam_steps,
