@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow.csv as pacsv
-import pytest
 import xarray as xr
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,7 +39,6 @@ def test_own_data_example_runs_from_table_to_forecast_band(tmp_path: Path) -> No
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
 
 
-@pytest.mark.slow  # benchmarks/station_keeping.py runs the example with a learned model
 def test_station_keeping_example_holds_the_body_where_it_would_drift(tmp_path: Path) -> None:
     """examples/station_keeping.py --fast: model-predictive control with the true 3-DOF model
     keeps the body within a hundredth of the distance it drifts without thrust."""
