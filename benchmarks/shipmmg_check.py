@@ -350,9 +350,9 @@ def windows_held(dataset, window: float) -> dict[str, list[int]]:
 
 def held_report(seeds: list[int], windows: list[float], position_noise: float, heading_noise: float) -> str:
     """For each data seed's known-force table, how many manoeuvres of each split hold each window."""
-    lines = ["seed  window [s]  samples  train held  val held  (trajectory lengths train / val)"]
     from fhnn.training.planar_tracks import window_size
 
+    lines = ["seed  window [s]  samples  train held  val held  (trajectory lengths train / val)"]
     for seed in seeds:
         _, imported, _ = imported_table(seed, position_noise, heading_noise)
         lengths = {k: np.asarray(imported.splits[k].lengths) for k in ("train", "val")}
