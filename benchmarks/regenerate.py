@@ -64,6 +64,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "station_keeping.py --data-seed 3": ["station_keeping_seed3"],
         "shipmmg_check.py --data-seed 3": ["shipmmg_seed3"],
         "shipmmg_check.py --data-seed 5 --track-windows 90 --grow 10,30,60,90": ["shipmmg_seed5"],
+        "shipmmg_check.py --data-seed 9 --track-windows 85,90": ["shipmmg_seed9"],
         "shipmmg_check.py --data-seed 3 --controls --no-track-fit": ["shipmmg_controls_seed3"],
         "shipmmg_check.py --data-seed 5 --controls --no-track-fit": ["shipmmg_controls_seed5"],
         "shipmmg_check.py --data-seed 7 --controls --no-track-fit --width 64": ["shipmmg_controls_seed7"],
