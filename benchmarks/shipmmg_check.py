@@ -355,11 +355,11 @@ def held_report(seeds: list[int], windows: list[float], position_noise: float, h
     lines = ["seed  window [s]  samples  train held  val held  (trajectory lengths train / val)"]
     for seed in seeds:
         _, imported, _ = imported_table(seed, position_noise, heading_noise)
-        lengths = {k: np.asarray(imported.splits[k].lengths) for k in ("train", "val")}
+        lengths = [np.asarray(imported.splits[k].lengths) for k in ("train", "val")]
+        span = " / ".join(f"{v.min()}-{v.max()}" for v in lengths)
         for window in windows:
             held = windows_held(imported, window)
             size = window_size(imported.splits["train"], window)
-            span = " / ".join(f"{v.min()}-{v.max()}" for v in lengths.values())
             lines.append(
                 f"{seed:>4}  {window:>10g}  {size:>7}  {held['train'][0]:>4} of {held['train'][1]:<4}"
                 f"  {held['val'][0]:>3} of {held['val'][1]:<3}  ({span})"
