@@ -406,6 +406,27 @@ def imported_table(seed: int, position_noise: float, heading_noise: float, contr
     return basic, data, dict(zip(names, sims, strict=True))
 
 
+def with_true_starts(imported, truth: dict[str, dict]):
+    """``imported`` with each held-out manoeuvre's first state replaced by shipmmg's, and the
+    estimated first states' error against it ``(N, 6)`` (heading wrapped)."""
+    import dataclasses
+
+    test = imported.splits["test"]
+    names = imported.params["ids"]["test"]
+    true_start = np.array(
+        [
+            [np.interp(test.t[k, 0], truth[n]["t"], truth[n]["state"][:, j]) for j in range(6)]
+            for k, n in enumerate(names)
+        ]
+    )
+    states = np.array(test.states, copy=True)
+    start_error = states[:, 0] - true_start
+    start_error[:, 2] = np.angle(np.exp(1j * start_error[:, 2]))
+    states[:, 0] = true_start
+    exact = dataclasses.replace(test, states=states)
+    return dataclasses.replace(imported, splits={**imported.splits, "test": exact}), start_error
+
+
 def val_forecast(model, imported) -> dict:
     """What a choice may read: forecasts of the validation manoeuvres from each first (estimated)
     state under their recorded forcing, against their observed pose (noisy), RMSE of position [m]
@@ -440,6 +461,7 @@ def judged(model, imported, truth: dict, basic, inertia: float) -> dict:
             for a, lv, tv, r in zip(axes, learned, true_added, rigid, strict=True)
         },
         "forecast": judge(model, imported, truth),
+        "forecast_true_start": judge(model, with_true_starts(imported, truth)[0], truth),
         "val_forecast": val_forecast(model, imported),
     }
 
@@ -550,19 +572,7 @@ def forecast_floor(seed: int, position_noise: float, heading_noise: float) -> di
     field = mmg_field(basic, mp)
     test = data.splits["test"]
     names = data.params["ids"]["test"]
-    true_start = np.array(
-        [
-            [np.interp(test.t[k, 0], truth[n]["t"], truth[n]["state"][:, j]) for j in range(6)]
-            for k, n in enumerate(names)
-        ]
-    )
-    states = np.array(test.states, copy=True)
-    start_error = states[:, 0] - true_start
-    start_error[:, 2] = np.angle(np.exp(1j * start_error[:, 2]))
-    states[:, 0] = true_start
-    exact_start = dataclasses.replace(
-        data, splits={**data.splits, "test": dataclasses.replace(test, states=states)}
-    )
+    exact_start, start_error = with_true_starts(data, truth)
 
     # the same manoeuvres on the simulation's 0.05 s grid: true states and forcing at every step
     sims = [truth[n] for n in names]

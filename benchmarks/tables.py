@@ -515,6 +515,7 @@ def _shipmmg_forecast_rows(
         ],
         ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]),
          heading_target),
+        ("… from the true first state: RMSE(pos) [m] / heading [°]", _true_start_cell, ""),
         ("validation RMSE(pos) over 1-60 s, against the observations [m]",
          lambda r: _g(r["val_forecast"]["rmse_pos_60"]) if "val_forecast" in r else "—", ""),
         ("normalised RMSE over the whole track", lambda r: _pct(r["forecast"]["nrmse_track"]),
@@ -522,6 +523,14 @@ def _shipmmg_forecast_rows(
         ("track fit: window, guard", _track_fit_cell, ""),
         ("seconds", lambda r: f"{r.get('train_seconds', r.get('seconds', float('nan'))):.0f}", ""),
     ]  # fmt: skip
+
+
+def _true_start_cell(r: dict[str, Any]) -> str:
+    """The held-out forecasts from shipmmg's first states, where the run recorded them."""
+    if "forecast_true_start" not in r:
+        return "—"
+    f = r["forecast_true_start"]
+    return f"{_g(f['rmse_pos_60'])} / {_g(f['rmse_heading_60_deg'])}"
 
 
 def _shipmmg_table(stages: list[tuple[str, Any]], measures: list, caption: str) -> str:
