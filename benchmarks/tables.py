@@ -593,6 +593,30 @@ def render_shipmmg(record: dict[str, Any]) -> str:
     return _shipmmg_table(stages, measures, caption)
 
 
+def render_forecast_floor(record: dict[str, Any]) -> str:
+    """shipmmg's own equations forecasting the held-out manoeuvres: from which first state, under
+    which forcing, against issue 71's targets."""
+    e = record["start_error"]
+    rows = [
+        [label, _g(record[key]["rmse_pos_60"]), _g(record[key]["rmse_heading_60_deg"]),
+         _pct(record[key]["nrmse_track"])]
+        for key, label in (
+            ("estimated_start", "the import's estimated first state, the table's forcing"),
+            ("true_start", "shipmmg's first state, the table's forcing"),
+            ("true_start_forcing_every_step", "shipmmg's first state, the forcing every 0.05 s"),
+        )
+    ]  # fmt: skip
+    t = record["targets"]
+    rows.append(["target (issue 71)", _g(t["rmse_pos_60"]), _g(t["rmse_heading_60_deg"]), ""])
+    caption = (
+        f"*Data seed {record['data_seed']}, held out: {', '.join(record['manoeuvres'])}. The estimated "
+        f"first states are off by {_g(100 * e['position_m'], 2)} cm, {_g(e['heading_deg'], 2)}°, "
+        f"{_g(100 * e['velocity_m_s'], 2)} cm/s and {_g(e['yaw_rate_deg_s'], 2)}°/s (RMS).*"
+    )
+    header = ["shipmmg's equations from", "RMSE(pos) over 1-60 s [m]", "heading [°]", "normalised RMSE"]
+    return caption + "\n\n" + _table(header, rows)
+
+
 def render_turning_choice(record: dict[str, Any]) -> str:
     """A choice of the 3-DOF model's settings: each run's validation loss (what chose) and more."""
     header = ["scenario", "setting", "validation loss", "last training loss", "training [s]"]
@@ -653,6 +677,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
         "baselines",
         "track_fit_solvers",
         "calibration",
+        "forecast_floor",
         "turning_choice",
         "turning_table",
         "turning_intervals",
