@@ -17,7 +17,12 @@ but ``--damping`` and is judged on:
 - forecasts of the held-out manoeuvres from their first (estimated) state under their recorded
   forcing, RMSE of position and heading at every whole second up to 60 s against shipmmg's
   noise-free trajectory, and the normalised RMSE over the whole track (RMSE over the track's
-  range, per coordinate, averaged) beside the published Koopman + neural-ODE figure.
+  range, per coordinate, averaged) beside the published Koopman + neural-ODE figure;
+- the same forecasts from shipmmg's own first states (``forecast_true_start``): the model's
+  error without the start estimate's.
+
+``--forecast-floor`` runs shipmmg's own equations through the same forecasts instead of a model:
+what the data and the measure leave for a perfect one.
 
 MMG's hull moment holds the Munk moment inside ``N_v``; FHNN writes it explicitly from the
 added masses, so its damping net has to represent MMG's hull forces less the Munk moment
@@ -637,7 +642,7 @@ def main() -> None:
         "--forecast-floor",
         action="store_true",
         help="only the exact MMG equations' held-out forecasts (from the estimated and the true first "
-        "state); written to --out if given",
+        "state, and from the true one with the forcing at every simulation step); written to --out if given",
     )
     p.add_argument("--no-track-fit", action="store_true", help="the one-step model only")
     p.add_argument("--track-steps", type=int, default=300, help="L-BFGS iterations of the track fit")
