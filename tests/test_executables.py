@@ -24,6 +24,8 @@ from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.executables import StoredProgram
 from fhnn.physics.scenarios import get_scenario
 
+from .conftest import TEST_ONLY_XLA_FLAG
+
 TRACES: list[int] = []
 
 
@@ -224,6 +226,7 @@ def test_a_new_process_trains_from_the_stored_programs_to_the_same_weights(tmp_p
     runs = []
     for seed, store in (("1", "on"), ("2", "on"), ("3", "off")):
         env = {**os.environ, "PYTHONHASHSEED": seed, executables.STORE_ENV: store}
+        env["XLA_FLAGS"] = " ".join(f for f in env.get("XLA_FLAGS", "").split() if f != TEST_ONLY_XLA_FLAG)
         done = subprocess.run(
             [sys.executable, "-c", SCRIPT, str(cache), str(data)], capture_output=True, text=True, env=env
         )
