@@ -604,7 +604,10 @@ def render_forecast_floor(record: dict[str, Any]) -> str:
             ("estimated_start", "the import's estimated first state, the table's forcing"),
             ("true_start", "shipmmg's first state, the table's forcing"),
             ("true_start_forcing_every_step", "shipmmg's first state, the forcing every 0.05 s"),
+            ("fitted_start", f"a first state fitted to the first {_g(record.get('fit_seconds', 0))} s "
+             "of observations, the table's forcing"),
         )
+        if key in record
     ]  # fmt: skip
     t = record["targets"]
     rows.append(["target (issue 71)", _g(t["rmse_pos_60"]), _g(t["rmse_heading_60_deg"]), ""])
