@@ -19,7 +19,8 @@ but ``--damping`` and is judged on:
   noise-free trajectory, and the normalised RMSE over the whole track (RMSE over the track's
   range, per coordinate, averaged) beside the published Koopman + neural-ODE figure;
 - the same forecasts from shipmmg's own first states (``forecast_true_start``): the model's
-  error without the start estimate's.
+  error without the start estimate's; and from a first state the model fits to the manoeuvre's
+  first 10 s of observations (``forecast_fitted_start``, :func:`fitted_starts`).
 
 ``--forecast-floor`` runs shipmmg's own equations through the same forecasts instead of a model:
 what the data and the measure leave for a perfect one.
@@ -302,7 +303,7 @@ def run(
         fit = train_turning(imported, model=model, training=training, progress=progress)
 
         def judged_model(m) -> dict:
-            return judged(m, imported, truth, basic, imported.inertia)
+            return judged(m, imported, truth, basic, imported.inertia, (position_noise, heading_noise))
 
     first = prefix or "one_step"
     report = {first: judged_model(fit.model)}
@@ -445,7 +446,7 @@ def val_forecast(model, imported) -> dict:
     return {"rmse_pos_60": errors["rmse_pos"], "rmse_heading_60_deg": heading}
 
 
-def judged(model, imported, truth: dict, basic, inertia: float) -> dict:
+def judged(model, imported, truth: dict, basic, inertia: float, noise: tuple[float, float]) -> dict:
     """Added masses, total inertias, held-out forecasts of ``model`` and its validation forecasts
     (:func:`val_forecast`)."""
     learned = np.asarray(model.added_mass())
@@ -467,6 +468,7 @@ def judged(model, imported, truth: dict, basic, inertia: float) -> dict:
         },
         "forecast": judge(model, imported, truth),
         "forecast_true_start": judge(model, with_true_starts(imported, truth)[0], truth),
+        "forecast_fitted_start": judge(model, fitted_starts(model, imported, *noise), truth),
         "val_forecast": val_forecast(model, imported),
     }
 
