@@ -412,6 +412,13 @@ def imported_table(seed: int, position_noise: float, heading_noise: float, contr
     return basic, data, dict(zip(names, sims, strict=True))
 
 
+def with_test(imported, test):
+    """``imported`` with its test split replaced by ``test``."""
+    import dataclasses
+
+    return dataclasses.replace(imported, splits={**imported.splits, "test": test})
+
+
 def with_true_starts(imported, truth: dict[str, dict]):
     """``imported`` with each held-out manoeuvre's first state replaced by shipmmg's, and the
     estimated first states' error against it ``(N, 6)`` (heading wrapped)."""
@@ -429,8 +436,7 @@ def with_true_starts(imported, truth: dict[str, dict]):
     start_error = states[:, 0] - true_start
     start_error[:, 2] = np.angle(np.exp(1j * start_error[:, 2]))
     states[:, 0] = true_start
-    exact = dataclasses.replace(test, states=states)
-    return dataclasses.replace(imported, splits={**imported.splits, "test": exact}), start_error
+    return with_test(imported, dataclasses.replace(test, states=states)), start_error
 
 
 def val_forecast(model, imported) -> dict:
@@ -569,8 +575,9 @@ FIT_SECONDS = 10.0
 
 def fitted_starts(field, imported, position_noise: float, heading_noise: float):
     """``imported`` with each held-out manoeuvre's first state fitted by ``field`` to its
-    observed pose over the first :data:`FIT_SECONDS` (least squares, each residual over its
-    noise, from the estimated state), as a forecast from a short history would start."""
+    observed pose over its first ``n`` samples, ``n`` the most any of them has within
+    :data:`FIT_SECONDS` (least squares, each residual over its noise, from the estimated state),
+    as a forecast from a short history would start."""
     import dataclasses
 
     import jax
@@ -600,8 +607,7 @@ def fitted_starts(field, imported, position_noise: float, heading_noise: float):
     fit = least_squares(misfit, test.states[:, 0].ravel(), x_scale="jac")
     states = np.array(test.states, copy=True)
     states[:, 0] = fit.x.reshape(-1, 6)
-    split = dataclasses.replace(test, states=states)
-    return dataclasses.replace(imported, splits={**imported.splits, "test": split})
+    return with_test(imported, dataclasses.replace(test, states=states))
 
 
 def forecast_floor(seed: int, position_noise: float, heading_noise: float) -> dict:
@@ -634,9 +640,13 @@ def forecast_floor(seed: int, position_noise: float, heading_noise: float) -> di
             out[k, : sim["t"].size], out[k, sim["t"].size :] = values, values[-1]
         return out
 
-    times = padded("t", 1)[..., 0]
-    for k, sim in enumerate(sims):  # padding continues the clock
-        times[k, sim["t"].size :] = sim["t"][-1] + DT * np.arange(1, size - sim["t"].size + 1)
+    # padding continues the clock
+    times = np.stack(
+        [
+            np.concatenate([sim["t"], sim["t"][-1] + DT * np.arange(1, size - sim["t"].size + 1)])
+            for sim in sims
+        ]
+    )
     grid_states = padded("state", 6)
     grid = dataclasses.replace(
         test,
@@ -647,7 +657,7 @@ def forecast_floor(seed: int, position_noise: float, heading_noise: float) -> di
         thrust=np.zeros((len(sims), *test.thrust.shape[1:])),
         lengths=np.array([sim["t"].size for sim in sims]),
     )
-    dense = dataclasses.replace(data, splits={**data.splits, "test": grid})
+    dense = with_test(data, grid)
 
     def brief(result: dict) -> dict:
         return {k: result[k] for k in ("rmse_pos_60", "rmse_heading_60_deg", "nrmse_track")}
@@ -687,8 +697,9 @@ def main() -> None:
     p.add_argument(
         "--forecast-floor",
         action="store_true",
-        help="only the exact MMG equations' held-out forecasts (from the estimated and the true first "
-        "state, and from the true one with the forcing at every simulation step); written to --out if given",
+        help="only the exact MMG equations' held-out forecasts (from the estimated, the true and a fitted "
+        "first state, and from the true one with the forcing at every simulation step); written to --out "
+        "if given",
     )
     p.add_argument("--no-track-fit", action="store_true", help="the one-step model only")
     p.add_argument("--track-steps", type=int, default=300, help="L-BFGS iterations of the track fit")

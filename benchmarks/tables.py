@@ -515,7 +515,8 @@ def _shipmmg_forecast_rows(
         ],
         ("held-out RMSE(heading) over 1-60 s [°]", lambda r: _g(r["forecast"]["rmse_heading_60_deg"]),
          heading_target),
-        ("… from the true first state: RMSE(pos) [m] / heading [°]", _true_start_cell, ""),
+        ("… from the true first state: RMSE(pos) [m] / heading [°]",
+         lambda r: _start_cell(r, "forecast_true_start"), ""),
         ("… from a first state fitted to 10 s: RMSE(pos) [m] / heading [°]",
          lambda r: _start_cell(r, "forecast_fitted_start"), ""),
         ("validation RMSE(pos) over 1-60 s, against the observations [m]",
@@ -532,11 +533,6 @@ def _start_cell(r: dict[str, Any], key: str) -> str:
     if key not in r:
         return "—"
     return f"{_g(r[key]['rmse_pos_60'])} / {_g(r[key]['rmse_heading_60_deg'])}"
-
-
-def _true_start_cell(r: dict[str, Any]) -> str:
-    """The held-out forecasts from shipmmg's first states, where the run recorded them."""
-    return _start_cell(r, "forecast_true_start")
 
 
 def _shipmmg_table(stages: list[tuple[str, Any]], measures: list, caption: str) -> str:
