@@ -315,10 +315,12 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
     assert "m_22" in said and "d_66 over r_r" in said
     for name in ("coefficients.csv", "damping.csv", "damping.png"):
         assert (folder / name).stat().st_size > 0
-    # predict: each track continued from its estimated last state (noise-free table: the truth's)
+    # predict: with --fit-window 0 each track continued from its estimated last state (noise-free
+    # table: the truth's), as predict_turning continues it
     import pandas as pd
 
-    from fhnn.api.planar_predict import COLUMNS
+    from fhnn.api.planar_forecast import forecast_turning
+    from fhnn.api.planar_predict import COLUMNS, predict_turning
     from fhnn.data.planar import read_planar
     from fhnn.data.planar_table import observed_table
 
@@ -335,9 +337,11 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
         "-o",
         str(forecast_path),
     ]
-    code, _, err = run([*predict, "--duration", "1", "--dt", "0.25"])
+    code, _, err = run([*predict, "--duration", "1", "--dt", "0.25", "--fit-window", "0"])
     assert code == 0, err
     forecast = pd.read_csv(forecast_path)
+    plain = predict_turning(folder, tmp_path / "h.csv", 1.0, dt=0.25)
+    np.testing.assert_allclose(forecast[list(COLUMNS[1:])], plain[list(COLUMNS[1:])], rtol=1e-12, atol=1e-12)
     assert (
         tuple(forecast.columns) == COLUMNS and forecast["traj_id"].nunique() == history["traj_id"].nunique()
     )
@@ -350,6 +354,12 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
         assert row["t"] == pytest.approx(part.t[int(index), part.lengths[int(index)] - 1], abs=1e-12)
         np.testing.assert_allclose(row[["x", "y", "heading"]].to_numpy(float), end[:3], atol=1e-4)
         np.testing.assert_allclose(row[["u", "v", "r"]].to_numpy(float), end[3:], atol=2e-2)
+    # by default the start is fitted to the last 10 s (here whole tracks): the model's rollout
+    # from the fitted state ends nearer the observed last pose than the smoothed estimate's misfit
+    fitted = forecast_turning(folder, tmp_path / "h.csv", 1.0, dt=0.25)
+    assert tuple(fitted.columns) == COLUMNS and len(fitted) == len(forecast)
+    assert np.all(np.isfinite(fitted[list(COLUMNS[2:])].to_numpy()))
+    assert not np.allclose(fitted[["u", "v", "r"]], forecast[["u", "v", "r"]], rtol=0, atol=1e-9)
     # the last track keeps one sample: no state can be estimated from it
     single = history[history["traj_id"] != history["traj_id"].iloc[-1]]
     single = pd.concat([single, history[history["traj_id"] == history["traj_id"].iloc[-1]].head(1)])
@@ -366,6 +376,7 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
         (["turning", "evaluate", str(tmp_path), str(data)], "no such file"),
         (["turning", "inspect", str(folder), str(data), "--out", str(tmp_path / "r2")], "does not exist"),
         ([*predict, "--duration", "0"], "duration must be a positive number of seconds"),
+        ([*predict, "--duration", "1", "--fit-window", "-1"], "fit_window must be zero or a positive"),
         ([*predict[:-1], str(tmp_path / "r2.txt"), "--duration", "1"], "give a .csv or .parquet file"),
         (one, "has 1 sample(s)"),
         (

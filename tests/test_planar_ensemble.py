@@ -21,7 +21,7 @@ from fhnn.api.planar_ensemble import (
     predict_turning_ensemble,
     train_turning_ensemble,
 )
-from fhnn.api.planar_predict import predict_turning
+from fhnn.api.planar_forecast import forecast_turning
 from fhnn.data.planar import read_planar, simulate_planar, write_planar
 from fhnn.data.planar_table import observed_table
 from fhnn.errors import ConfigError, DataFormatError
@@ -205,13 +205,16 @@ def test_inspect_and_predict_an_ensemble_from_the_command_line(ensemble, capsys)
     )
     assert code == 0, err
     band = pd.read_csv(out_file)
-    single = predict_turning(twin / "seed-4", history, 1.0)
+    single = forecast_turning(twin / "seed-4", history, 1.0)
     for name in ("x", "y", "heading", "u", "v", "r"):
         np.testing.assert_allclose(band[name], single[name], rtol=0, atol=1e-12)
         np.testing.assert_allclose(band[f"{name}_lo"], single[name], rtol=0, atol=1e-12)
         np.testing.assert_allclose(band[f"{name}_hi"], single[name], rtol=0, atol=1e-12)
-    # the real ensemble: a band that holds its median
-    band = predict_turning_ensemble(ens, history, 1.0)
+    # the real ensemble: a band that holds its median; from the smoothed last state, as
+    # predict_turning_ensemble forecasts
+    band = forecast_turning(ens, history, 1.0, fit_window=0)
+    plain = predict_turning_ensemble(ens, history, 1.0)
+    np.testing.assert_allclose(band.drop(columns="traj_id"), plain.drop(columns="traj_id"), rtol=1e-12)
     assert (
         np.all(band["x_lo"] <= band["x"])
         and np.all(band["x"] <= band["x_hi"])

@@ -46,10 +46,12 @@ _PUBLIC = {
     "load_turning": "fhnn.api.planar",
     "evaluate_turning": "fhnn.api.planar",
     "inspect_turning": "fhnn.api.planar_inspect",
-    "predict_turning": "fhnn.api.planar_predict",
+    "forecast_turning": "fhnn.api.planar_forecast",
     "train_turning_ensemble": "fhnn.api.planar_ensemble",
     "inspect_turning_ensemble": "fhnn.api.planar_ensemble",
     "evaluate_turning_ensemble": "fhnn.api.planar_ensemble",
+    # forecasts from the smoothed last state alone (forecast_turning's fit_window=0)
+    "predict_turning": "fhnn.api.planar_predict",
     "predict_turning_ensemble": "fhnn.api.planar_ensemble",
     "import_controlled": "fhnn.api.planar_controls",
     "train_controlled": "fhnn.api.planar_controls",

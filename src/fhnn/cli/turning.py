@@ -22,11 +22,10 @@ from fhnn.api.planar_ensemble import (
     evaluate_turning_ensemble,
     inspect_turning_ensemble,
     is_turning_ensemble,
-    predict_turning_ensemble,
     train_turning_ensemble,
 )
+from fhnn.api.planar_forecast import FIT_WINDOW, forecast_turning
 from fhnn.api.planar_inspect import inspect_turning
-from fhnn.api.planar_predict import predict_turning
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, QuietOption, TimeUnitOption, app
 from fhnn.data.planar import read_planar
@@ -239,18 +238,28 @@ def predict(
     dt: Annotated[
         float | None, typer.Option(help="Output step in s [default: the history's median step].")
     ] = None,
+    fit_window: Annotated[
+        float,
+        typer.Option(
+            "--fit-window",
+            help="Seconds before each track's last sample whose observed poses the start state is "
+            "fitted to (at least the last 3 samples); 0: start from the smoothed estimate.",
+        ),
+    ] = FIT_WINDOW,
     smoother: Annotated[str, typer.Option(help="As for `fhnn import`: spline, kalman or auto.")] = "auto",
     columns: ColumnsOption = None,
     time_unit: TimeUnitOption = "s",
     quiet: QuietOption = False,
 ) -> None:
-    """Continue each observed track from its last estimated state (pose and body-frame velocity,
-    smoothed as `fhnn import` does), its last forces or controls held; write traj_id, t, x, y,
-    heading, u, v, r (an ensemble: the members' median, each with _lo and _hi, a 90 % interval)."""
-    forecast = (predict_turning_ensemble if is_turning_ensemble(run) else predict_turning)(
+    """Continue each observed track from the state the model fits to its last --fit-window
+    seconds (started from the pose and body-frame velocity smoothed as `fhnn import` does), its
+    last forces or controls held; write traj_id, t, x, y, heading, u, v, r (an ensemble: the
+    members' median, each with _lo and _hi, a 90 % interval)."""
+    forecast = forecast_turning(
         run,
         history,
         duration,
+        fit_window=fit_window,
         dt=dt,
         smoother=smoother,
         columns=columns,
