@@ -618,39 +618,27 @@ FIT_SECONDS = 10.0
 def fitted_starts(field, imported, position_noise: float, heading_noise: float, split: str = "test"):
     """``imported`` with each manoeuvre of ``split`` (held-out by default) given a first state
     fitted by ``field`` to its observed pose over its first ``n`` samples, ``n`` the most any of
-    them has within :data:`FIT_SECONDS` (least squares, each residual over its noise, from the
-    estimated state), as a forecast from a short history would start."""
+    them has within :data:`FIT_SECONDS` (:func:`fhnn.evaluation.planar_start.fit_start_states`,
+    as ``fhnn turning predict`` fits its start, from the estimated state)."""
     import dataclasses
 
-    import jax
-    import jax.numpy as jnp
-    from scipy.optimize import least_squares
+    from fhnn.evaluation.planar_start import fit_start_states
 
-    from fhnn.data.planar import solve_planar
-    from fhnn.evaluation.planar import ROLLOUT_BOUND, ROLLOUT_TOL
-
-    test = imported.splits[split]
-    n = int(np.max(np.sum(test.t - test.t[:, :1] <= FIT_SECONDS + 1e-9, axis=1)))
-    t, thrust = jnp.asarray(test.t[:, :n]), jnp.asarray(test.thrust)
-    residual = jnp.asarray(test.residual()[:, :n])
-    seen = test.states_clean[:, :n, :3]
-    scale = np.array([position_noise, position_noise, heading_noise])
-
-    @jax.jit
-    def pose(y0):
-        states, _ = solve_planar(field, y0, thrust, t, residual, tol=ROLLOUT_TOL, bound=ROLLOUT_BOUND)
-        return states[..., :3]
-
-    def misfit(flat):
-        err = np.asarray(pose(jnp.asarray(flat.reshape(-1, 6)))) - seen
-        err[..., 2] = np.angle(np.exp(1j * err[..., 2]))
-        return (err / scale).ravel()
-
-    fit = least_squares(misfit, test.states[:, 0].ravel(), x_scale="jac")
-    states = np.array(test.states, copy=True)
-    states[:, 0] = fit.x.reshape(-1, 6)
+    part = imported.splits[split]
+    n = int(np.max(np.sum(part.t - part.t[:, :1] <= FIT_SECONDS + 1e-9, axis=1)))
+    fitted, _ = fit_start_states(
+        field,
+        part.states[:, 0],
+        part.t[:, :n],
+        part.states_clean[:, :n, :3],
+        part.residual()[:, :n],
+        part.thrust,
+        (position_noise, heading_noise),
+    )
+    states = np.array(part.states, copy=True)
+    states[:, 0] = fitted
     return dataclasses.replace(
-        imported, splits={**imported.splits, split: dataclasses.replace(test, states=states)}
+        imported, splits={**imported.splits, split: dataclasses.replace(part, states=states)}
     )
 
 
