@@ -65,6 +65,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "shipmmg_check.py --data-seed 3": ["shipmmg_seed3"],
         "shipmmg_check.py --data-seed 5": ["shipmmg_seed5"],
         "shipmmg_check.py --data-seed 9": ["shipmmg_seed9"],
+        "shipmmg_check.py --data-seed 11": ["shipmmg_seed11"],
         "shipmmg_check.py --data-seed 3 --controls --no-track-fit": ["shipmmg_controls_seed3"],
         "shipmmg_check.py --data-seed 5 --controls --no-track-fit": ["shipmmg_controls_seed5"],
         "shipmmg_check.py --data-seed 7 --controls --no-track-fit --width 64": ["shipmmg_controls_seed7"],

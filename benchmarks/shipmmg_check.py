@@ -300,7 +300,13 @@ def run(
         fit = train_controlled(imported, model=model, training=training, progress=progress)
 
         def judged_model(m) -> dict:
-            return {"forecast": judge(m, dataset, truth), "val_forecast": val_forecast(m, dataset)}
+            noise = (position_noise, heading_noise)
+            return {
+                "forecast": judge(m, dataset, truth),
+                "forecast_fitted_start": judge(m, fitted_starts(m, dataset, *noise), truth),
+                "val_forecast": val_forecast(m, dataset),
+                "val_forecast_fitted": val_forecast(m, dataset, noise),
+            }
     else:
         dataset, prefix = imported, ""
         fit = train_turning(imported, model=model, training=training, progress=progress)
