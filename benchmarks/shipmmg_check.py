@@ -300,13 +300,7 @@ def run(
         fit = train_controlled(imported, model=model, training=training, progress=progress)
 
         def judged_model(m) -> dict:
-            noise = (position_noise, heading_noise)
-            return {
-                "forecast": judge(m, dataset, truth),
-                "forecast_fitted_start": judge(m, fitted_starts(m, dataset, *noise), truth),
-                "val_forecast": val_forecast(m, dataset),
-                "val_forecast_fitted": val_forecast(m, dataset, noise),
-            }
+            return forecasts(m, dataset, truth, (position_noise, heading_noise))
     else:
         dataset, prefix = imported, ""
         fit = train_turning(imported, model=model, training=training, progress=progress)
@@ -450,11 +444,11 @@ def imported_table(seed: int, position_noise: float, heading_noise: float, contr
     return basic, data, dict(zip(names, sims, strict=True))
 
 
-def with_test(imported, test):
-    """``imported`` with its test split replaced by ``test``."""
+def with_test(imported, test, split: str = "test"):
+    """``imported`` with its ``split`` (the test split by default) replaced by ``test``."""
     import dataclasses
 
-    return dataclasses.replace(imported, splits={**imported.splits, "test": test})
+    return dataclasses.replace(imported, splits={**imported.splits, split: test})
 
 
 def with_true_starts(imported, truth: dict[str, dict]):
@@ -493,9 +487,21 @@ def val_forecast(model, imported, noise: tuple[float, float] | None = None) -> d
     return {"rmse_pos_60": errors["rmse_pos"], "rmse_heading_60_deg": heading}
 
 
+def forecasts(model, imported, truth: dict, noise: tuple[float, float]) -> dict:
+    """``model``'s held-out forecasts (:func:`judge`) and validation forecasts
+    (:func:`val_forecast`), each from the estimated first states and from first states fitted to
+    :data:`FIT_SECONDS` (:func:`fitted_starts`; ``noise``: position [m], heading [rad])."""
+    return {
+        "forecast": judge(model, imported, truth),
+        "forecast_fitted_start": judge(model, fitted_starts(model, imported, *noise), truth),
+        "val_forecast": val_forecast(model, imported),
+        "val_forecast_fitted": val_forecast(model, imported, noise),
+    }
+
+
 def judged(model, imported, truth: dict, basic, inertia: float, noise: tuple[float, float]) -> dict:
-    """Added masses, total inertias, held-out forecasts of ``model`` and its validation forecasts
-    (:func:`val_forecast`)."""
+    """Added masses, total inertias, and :func:`forecasts` of ``model``, with the held-out
+    forecasts from shipmmg's first states as well."""
     learned = np.asarray(model.added_mass())
     true_added = np.array([basic.m_x, basic.m_y, basic.J_z])
     rigid = np.array([basic.m, basic.m, inertia])
@@ -513,11 +519,8 @@ def judged(model, imported, truth: dict, basic, inertia: float, noise: tuple[flo
             }
             for a, lv, tv, r in zip(axes, learned, true_added, rigid, strict=True)
         },
-        "forecast": judge(model, imported, truth),
+        **forecasts(model, imported, truth, noise),
         "forecast_true_start": judge(model, with_true_starts(imported, truth)[0], truth),
-        "forecast_fitted_start": judge(model, fitted_starts(model, imported, *noise), truth),
-        "val_forecast": val_forecast(model, imported),
-        "val_forecast_fitted": val_forecast(model, imported, noise),
     }
 
 
@@ -643,9 +646,7 @@ def fitted_starts(field, imported, position_noise: float, heading_noise: float, 
     )
     states = np.array(part.states, copy=True)
     states[:, 0] = fitted
-    return dataclasses.replace(
-        imported, splits={**imported.splits, split: dataclasses.replace(part, states=states)}
-    )
+    return with_test(imported, dataclasses.replace(part, states=states), split)
 
 
 def forecast_floor(seed: int, position_noise: float, heading_noise: float) -> dict:
