@@ -2,6 +2,7 @@
 2-DOF body, a body turning with the water, dissipation."""
 
 import math
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -360,6 +361,15 @@ def test_the_turning_commands_simulate_train_and_evaluate_and_refuse_bad_input(t
     assert tuple(fitted.columns) == COLUMNS and len(fitted) == len(forecast)
     assert np.all(np.isfinite(fitted[list(COLUMNS[2:])].to_numpy()))
     assert not np.allclose(fitted[["u", "v", "r"]], forecast[["u", "v", "r"]], rtol=0, atol=1e-9)
+    # four samples a track give no noise estimate (it needs five): the fit runs at the floor
+    short = history.groupby("traj_id").tail(4)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        brief = forecast_turning(folder, short, 1.0, dt=0.25)
+    assert not [w for w in caught if "diverged" in str(w.message)]  # no track fell back
+    assert brief["traj_id"].nunique() == history["traj_id"].nunique()
+    assert (brief.groupby("traj_id").size() == 5).all()
+    assert np.all(np.isfinite(brief[list(COLUMNS[2:])].to_numpy()))
     # the last track keeps one sample: no state can be estimated from it
     single = history[history["traj_id"] != history["traj_id"].iloc[-1]]
     single = pd.concat([single, history[history["traj_id"] == history["traj_id"].iloc[-1]].head(1)])

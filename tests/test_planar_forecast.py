@@ -4,6 +4,7 @@ and forecasts from it (:mod:`fhnn.api.planar_forecast`)."""
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from fhnn.data.planar import simulate_planar
@@ -61,3 +62,30 @@ def test_padded_samples_do_not_count_and_bad_settings_are_refused(planar_data) -
     few[:, :2] = True
     with pytest.raises(ConfigError, match="at least 3 observed samples per track"):
         _fit(planar_data, test.states_clean[:, 0], pose, (1e-3, 1e-3), few)
+
+
+def test_a_track_whose_fitted_rollout_diverges_keeps_its_smoothed_start(planar_data, monkeypatch) -> None:
+    """Where the fitted start's rollout does not reach a track's end, that track (and no other)
+    starts from the smoothed estimate, and a warning names it."""
+    import fhnn.api.planar_forecast as forecast
+    from fhnn.data.planar_table import _smoothed, observed_table, read_planar_table
+
+    tracks = read_planar_table(pd.DataFrame(observed_table(planar_data))).trajectories
+    poses, rates, noise_pos, noise_psi = _smoothed(tracks, "kalman")
+    model = planar_data.truth().equations()
+    smoothed, _ = forecast._end_states(model, tracks, poses, rates, (noise_pos, noise_psi), 0.0)
+    fitted, _ = forecast._end_states(model, tracks, poses, rates, (noise_pos, noise_psi), 10.0)
+    real = forecast.fit_start_states
+
+    def first_diverges(*args, **kwargs):
+        start, rollout = real(*args, **kwargs)
+        rollout = rollout.copy()
+        rollout[0, 1:] = np.nan
+        return start, rollout
+
+    monkeypatch.setattr(forecast, "fit_start_states", first_diverges)
+    with pytest.warns(UserWarning, match=f"diverged for track\\(s\\) {tracks[0].traj_id};"):
+        mixed, _ = forecast._end_states(model, tracks, poses, rates, (noise_pos, noise_psi), 10.0)
+    np.testing.assert_array_equal(mixed[0], smoothed[0])
+    np.testing.assert_array_equal(mixed[1:], fitted[1:])
+    assert not np.allclose(fitted[0], smoothed[0], rtol=0, atol=1e-9)

@@ -23,6 +23,7 @@ their median and a 90 % interval.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -51,6 +52,10 @@ from fhnn.training.ensemble import interval, member_folders
 #: (docs/design/turning.md).
 FIT_WINDOW = 10.0
 
+#: The least noise levels, position [m] and heading [rad], a start is fitted with: the import's
+#: estimate needs five samples a track and is 0 below that.
+NOISE_FLOOR = (1e-6, 1e-6)
+
 
 def _body_forces(track: PlanarTrajectory, heading: np.ndarray) -> np.ndarray:
     """A track's body-frame forces and moment at its samples, ``(n, 3)`` [N, N, N·m]: the
@@ -64,6 +69,12 @@ def _body_forces(track: PlanarTrajectory, heading: np.ndarray) -> np.ndarray:
     return np.zeros((track.t.size, 3))
 
 
+def _state(pose: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """The state ``x, y, ψ, u, v, r`` of a smoothed pose ``(3,)`` and its world-frame rate ``(3,)``."""
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    return np.array([*pose, c * rate[0] + s * rate[1], -s * rate[0] + c * rate[1], rate[2]])
+
+
 def _end_states(
     model,
     tracks: list[PlanarTrajectory],
@@ -74,19 +85,18 @@ def _end_states(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each track's state at its last sample, ``(N, 6)``, and its body-frame forcing there,
     ``(N, 3)``: the smoothed estimate (``fit_window`` 0), or the model's state fitted to the
-    samples of the last ``fit_window`` seconds (at least the last three) and carried to the end."""
-    states, forces, cuts = [], [], []
-    for track, pose, rate in zip(tracks, poses, rates, strict=True):
-        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-        nu = np.stack([c * rate[:, 0] + s * rate[:, 1], -s * rate[:, 0] + c * rate[:, 1], rate[:, 2]], 1)
-        states.append(np.concatenate([pose, nu], axis=1))
-        forces.append(_body_forces(track, pose[:, 2]))
-        first = int(np.searchsorted(track.t, track.t[-1] - fit_window - 1e-9))
-        cuts.append(min(first, track.t.size - 3))
-    ends = np.array([s[-1] for s in states])
+    samples of the last ``fit_window`` seconds (at least the last three) and carried to the end.
+    A track whose fitted rollout does not reach its end keeps the smoothed estimate, with a
+    warning."""
+    forces = [_body_forces(track, pose[:, 2]) for track, pose in zip(tracks, poses, strict=True)]
+    ends = np.array([_state(pose[-1], rate[-1]) for pose, rate in zip(poses, rates, strict=True)])
     last_forces = np.array([f[-1] for f in forces])
     if fit_window == 0:
         return ends, last_forces
+    cuts = [
+        min(int(np.searchsorted(track.t, track.t[-1] - fit_window - 1e-9)), track.t.size - 3)
+        for track in tracks
+    ]
     size = max(track.t.size - cut for track, cut in zip(tracks, cuts, strict=True))
     windows = [slice(cut, None) for cut in cuts]
     t = _padded([tr.t[w] for tr, w in zip(tracks, windows, strict=True)], size, times=True)
@@ -94,18 +104,29 @@ def _end_states(
     forcing = _padded([f[w] for f, w in zip(forces, windows, strict=True)], size)
     lengths = np.array([tr.t.size - cut for tr, cut in zip(tracks, cuts, strict=True)])
     observed = np.arange(size)[None, :] < lengths[:, None]
+    # a history of at most four samples a track has no noise estimate (0): floor it
+    floored = (max(noise[0], NOISE_FLOOR[0]), max(noise[1], NOISE_FLOOR[1]))
     _, rollout = fit_start_states(
         model,
-        np.array([s[cut] for s, cut in zip(states, cuts, strict=True)]),
+        np.array([_state(p[c], r[c]) for p, r, c in zip(poses, rates, cuts, strict=True)]),
         t,
         observed_pose,
         forcing,
         np.zeros((len(tracks), 3, 3, 3)),
-        noise,
+        floored,
         observed=observed,
     )
     fitted_ends = rollout[np.arange(len(tracks)), lengths - 1]
-    return np.where(np.isfinite(fitted_ends), fitted_ends, ends), last_forces
+    failed = ~np.all(np.isfinite(fitted_ends), axis=1)
+    if failed.any():
+        names = ", ".join(str(tracks[i].traj_id) for i in np.flatnonzero(failed))
+        warnings.warn(
+            f"the fitted start's rollout diverged for track(s) {names}; "
+            "they start from the smoothed estimate at their last sample",
+            UserWarning,
+            stacklevel=3,
+        )
+    return np.where(failed[:, None], ends, fitted_ends), last_forces
 
 
 def _forecast_one(model, tracks, smoothed, fit_window: float, step: float, n: int) -> pd.DataFrame:
