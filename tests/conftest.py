@@ -25,7 +25,11 @@ TEST_ONLY_XLA_FLAG = "--xla_cpu_use_fusion_emitters=false"
 #: its validation loss moved in the last bit only. Set before JAX starts its backend (nothing has
 #: imported JAX yet), here and in the subprocesses the tests start (they inherit it); checked to
 #: hold the package's flags below.
-TEST_XLA_FLAGS = f"--xla_backend_optimization_level=0 {TEST_ONLY_XLA_FLAG}"
+#: And XLA's CPU runtime runs each operation on one thread (``--xla_cpu_multi_thread_eigen=false``):
+#: the two xdist workers already fill the two cores, and each worker's operations are small, so
+#: a thread pool per operation only contends; ``test_track_fit.py`` and ``test_planar_controls.py``
+#: took 145 s against 159 s with it, back to back on 2 cores (2026-12-06).
+TEST_XLA_FLAGS = f"--xla_backend_optimization_level=0 --xla_cpu_multi_thread_eigen=false {TEST_ONLY_XLA_FLAG}"
 if TEST_XLA_FLAGS not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {TEST_XLA_FLAGS}".strip()
 
