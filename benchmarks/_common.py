@@ -13,7 +13,7 @@ from fhnn.data.dataset import Dataset, read_dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.physics.scenarios import get_scenario
 from fhnn.runtime import provenance
-from fhnn.stamps import result_files
+from fhnn.stamps import file_digests, result_files
 
 
 def dataset(name: str, folder: Path, seed: int | None = None) -> tuple[Dataset, Path]:
@@ -37,9 +37,12 @@ def seconds_per_call(fn: Callable[[], Any], repeats: int) -> float:
 
 
 #: The provenance as the script started, with the files its digest covers
-#: (:func:`fhnn.stamps.result_files`): the code it runs is the code it loaded then, not what the
-#: source tree holds when it ends (it may have changed during a run of hours).
-_STARTED = {**provenance(), "files": result_files()}
+#: (:func:`fhnn.stamps.result_files`) and each one's digest (:func:`fhnn.stamps.file_digests`,
+#: by which the result is judged against the files its script runs): the code it runs is the code
+#: it loaded then, not what the source tree holds when it ends (it may have changed during a run
+#: of hours).
+_FILES = result_files()
+_STARTED = {**provenance(), "files": _FILES, "file_digests": file_digests(_FILES)}
 
 
 def stamp() -> dict:

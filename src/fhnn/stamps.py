@@ -8,35 +8,278 @@ added after the result was made cannot have moved it: it reaches a result only t
 existing file that imports it, and that file's change makes the result stale (the package finds no
 module by scanning; ``tests/test_results_current.py`` checks that). A stamp without ``files`` is
 judged against every results-affecting file, as before.
+
+A result whose stamp also records ``file_digests`` (the digest of each of those files' code) can
+be judged by the files its script can run (:func:`import_closure`): it stays current while every
+file its script reaches, through the imports written in the script and in the package, still has
+the digest it was made with. A change elsewhere in the package cannot have moved it. The scripts
+themselves are not stamped: a file the result was made without, which the script reaches now,
+is reached through the script (or through a changed file, which makes it stale).
 """
 
 from __future__ import annotations
 
+import ast
+import hashlib
 from collections.abc import Mapping
+from pathlib import Path
 
-from fhnn.runtime import PACKAGE_ROOT, RESULT_SOURCES, source_digest
+from fhnn.runtime import PACKAGE_ROOT, RESULT_SOURCES, _code, source_digest
 
 
 def result_files() -> list[str]:
     """The ``.py`` files under :data:`fhnn.runtime.RESULT_SOURCES`, relative to the package root,
     sorted: what :func:`fhnn.runtime.source_digest` of them covers."""
+    return result_files_under(PACKAGE_ROOT)
+
+
+def result_files_under(root: Path) -> list[str]:
+    """:func:`result_files` of a package folder ``root``."""
     files: set[str] = set()
     for part in RESULT_SOURCES:
-        path = PACKAGE_ROOT / part
-        found = path.rglob("*.py") if path.is_dir() else [path]
-        files.update(p.relative_to(PACKAGE_ROOT).as_posix() for p in found)
+        path = root / part
+        found = path.rglob("*.py") if path.is_dir() else [path] if path.is_file() else []
+        files.update(p.relative_to(root).as_posix() for p in found)
     return sorted(files)
 
 
-def stale_reason(stamp: Mapping[str, object]) -> str | None:
+def file_digests(files: list[str], root: Path | None = None) -> dict[str, str]:
+    """The digest (16 hex digits) of each file's code, its syntax tree without docstrings and
+    comments, as :func:`fhnn.runtime.source_digest` reads it.
+
+    Args:
+        files: paths relative to ``root`` (default :data:`fhnn.runtime.PACKAGE_ROOT`).
+    """
+    base = PACKAGE_ROOT if root is None else Path(root)
+    return {f: hashlib.sha256(_code((base / f).read_text()).encode()).hexdigest()[:16] for f in files}
+
+
+def _lazy_names(root: Path) -> dict[str, str]:
+    """The package's lazy public names (``fhnn._PUBLIC``: name → module)."""
+    for node in ast.parse((root / "__init__.py").read_text()).body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "_PUBLIC" for t in node.targets):
+            return ast.literal_eval(node.value)
+    return {}
+
+
+def _module(name: str, root: Path) -> list[Path] | None:
+    """The files importing module ``name`` (``fhnn`` or below) runs: its packages' ``__init__.py``
+    and its own file; ``None`` when no such module is under ``root``."""
+    parts = name.split(".")
+    if parts[0] != "fhnn":
+        return None
+    folder, files = root, [root / "__init__.py"]
+    for i, part in enumerate(parts[1:], start=2):
+        if (folder / part / "__init__.py").is_file():
+            folder = folder / part
+            files.append(folder / "__init__.py")
+        elif i == len(parts) and (folder / f"{part}.py").is_file():
+            files.append(folder / f"{part}.py")
+        else:
+            return None
+    return files
+
+
+#: Calls that start a process: ``subprocess``'s and ``os``'s.
+_PROCESS_MODULES = {"subprocess": None, "os": ("system", "popen", "exec", "spawn")}
+
+
+def _starts_python(tree: ast.AST) -> bool:
+    """Whether code starts Python processes of its own (``sys.executable`` anywhere; the ``fhnn``
+    command or ``python`` in a call of ``subprocess`` or ``os``): what those run, its imports do
+    not bound."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and node.attr == "executable":
+            if isinstance(node.value, ast.Name) and node.value.id == "sys":
+                return True
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            owner = node.func.value
+            if not isinstance(owner, ast.Name) or owner.id not in _PROCESS_MODULES:
+                continue
+            names = _PROCESS_MODULES[owner.id]
+            if names is not None and not node.func.attr.startswith(names):
+                continue
+            for inner in ast.walk(node):
+                if isinstance(inner, ast.Constant) and isinstance(inner.value, str):
+                    if inner.value == "fhnn" or inner.value.startswith("python"):
+                        return True
+    return False
+
+
+#: Functions that import a module named at run time.
+_BY_NAME = {"import_module", "spec_from_file_location", "__import__", "run_path", "run_module"}
+
+
+def _imports_by_name(tree: ast.AST) -> bool:
+    """Whether code calls a function that imports a module named at run time."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func = node.func
+            name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+            if name in _BY_NAME:
+                return True
+    return False
+
+
+def _imports(tree: ast.AST, package: list[str]) -> tuple[list[tuple[str, list[str]]], set[str]]:
+    """The imports written anywhere in ``tree`` (a file of package ``package``, ``[]`` outside
+    the package): ``(module, names)`` pairs, absolute (``names`` empty for ``import module``),
+    and the names the bare package ``fhnn`` is bound to."""
+    found: list[tuple[str, list[str]]] = []
+    bound: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                found.append((alias.name, []))
+                if alias.name.split(".")[0] == "fhnn" and (alias.asname is None or alias.name == "fhnn"):
+                    bound.add(alias.asname or "fhnn")
+        elif isinstance(node, ast.ImportFrom):
+            name = node.module or ""
+            if node.level:
+                name = ".".join(package[: len(package) - node.level + 1] + ([name] if name else []))
+            found.append((name, [alias.name for alias in node.names]))
+    return found, bound
+
+
+def _local(name: str, names: list[str], path: Path) -> list[Path]:
+    """The files of module ``name`` (and of its submodules among ``names``) found beside ``path``,
+    a file outside the package, or one folder up (a script's helpers, the repository's ``tests``
+    package); none for a module installed elsewhere."""
+    found: list[Path] = []
+    for base in (path.parent, path.parent.parent):
+        for parts in [name.split(".")] + [[*name.split("."), sub] for sub in names]:
+            folder = base.joinpath(*parts)
+            for candidate in (folder.with_suffix(".py"), folder / "__init__.py"):
+                if candidate.is_file():
+                    found.append(candidate)
+            # the packages above it run first
+            found.extend(base.joinpath(*parts[:i], "__init__.py") for i in range(1, len(parts)))
+    return [f for f in found if f.is_file()]
+
+
+def _package_attributes(tree: ast.AST, bound: set[str], lazy: Mapping[str, str]) -> list[str]:
+    """The names ``tree`` reads as ``fhnn.<name>`` through the names in ``bound``; every lazy
+    public name where it passes the package itself on."""
+    held = {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in bound:
+            names.append(node.attr)
+        elif isinstance(node, ast.Name) and node.id in bound and id(node) not in held:
+            names.extend(lazy)
+    return names
+
+
+def _reached(path: Path, tree: ast.AST, root: Path, lazy: Mapping[str, str]) -> list[Path]:
+    """The files the imports written in ``path`` (anywhere in it) can run: modules of the package
+    under ``root`` and, for a file outside it, helper scripts beside it.
+
+    Raises:
+        ValueError: an import names a module of the package that is not under ``root``.
+    """
+    inside = path.is_relative_to(root)
+    found: list[Path] = []
+
+    def module(name: str) -> None:
+        files = _module(name, root)
+        if files is None:
+            raise ValueError(f"{path.name} imports {name}, which is not a module under {root}")
+        found.extend(files)
+
+    def attribute(name: str) -> None:
+        """``fhnn.<name>``: a lazy public name or a subpackage."""
+        if name in lazy:
+            module(lazy[name])
+        elif _module(f"fhnn.{name}", root) is not None:
+            module(f"fhnn.{name}")
+
+    imports, bound = _imports(tree, ["fhnn", *path.relative_to(root).parent.parts] if inside else [])
+    for name, names in imports:
+        if name.split(".")[0] == "fhnn":
+            module(name)
+            for sub in names:
+                if name == "fhnn":
+                    attribute(sub)
+                elif _module(f"{name}.{sub}", root) is not None:
+                    module(f"{name}.{sub}")
+        elif not inside:
+            found.extend(_local(name, names, path))
+    for name in _package_attributes(tree, bound, lazy):
+        attribute(name)
+    return found
+
+
+def import_closure(script: Path, root: Path | None = None) -> list[str] | None:
+    """The results-affecting files (:func:`result_files`, relative to ``root``) that running
+    ``script`` can execute: those its imports reach, followed through the package's modules and
+    the helper scripts beside it. The package imports no module it finds by scanning and names
+    no module in a string but in its lazy table (``tests/test_results_current.py`` checks both),
+    so its written imports bound what runs. Processes started with the same interpreter (a pool's
+    workers) run functions of modules the script reached.
+
+    Args:
+        script: a Python file, inside or outside the package.
+        root: the package's folder (default :data:`fhnn.runtime.PACKAGE_ROOT`).
+
+    Returns:
+        The sorted paths, or ``None`` when something reached starts Python processes of its own
+        (``sys.executable``, the ``fhnn`` command) or, outside the package, imports a module
+        named at run time: what runs then, the written imports do not bound.
+
+    Raises:
+        ValueError: an import names a module of the package that is not under ``root``.
+    """
+    base = (PACKAGE_ROOT if root is None else Path(root)).resolve()
+    lazy = _lazy_names(base)
+    seen: set[Path] = set()
+    queue = [Path(script).resolve()]
+    while queue:
+        path = queue.pop()
+        if path in seen:
+            continue
+        seen.add(path)
+        tree = ast.parse(path.read_text())
+        if _starts_python(tree) or (not path.is_relative_to(base) and _imports_by_name(tree)):
+            return None
+        queue.extend(p.resolve() for p in _reached(path, tree, base, lazy))
+    affecting = set(result_files_under(base))
+    return sorted(
+        rel for p in seen if p.is_relative_to(base) and (rel := p.relative_to(base).as_posix()) in affecting
+    )
+
+
+def stale_reason(stamp: Mapping[str, object], script: Path | None = None) -> str | None:
     """Why a result stamped with ``stamp`` (a provenance record) was made by other code than the
     current, or ``None`` when it was not.
 
+    Args:
+        stamp: the result's provenance.
+        script: the script that made it. Where given, and where the stamp records
+            ``file_digests``, only the files :func:`import_closure` finds the script reaches are
+            judged; otherwise every file of the stamp's ``files``.
+
     Raises:
-        ValueError: ``stamp`` lacks ``source``, or its ``files`` is not a list of strings.
+        ValueError: ``stamp`` lacks ``source``, or its ``files`` is not a list of strings, or
+            its ``file_digests`` not a mapping of paths to digests.
     """
     if "source" not in stamp:
         raise ValueError("the provenance has no 'source' digest")
+    digests = stamp.get("file_digests")
+    if digests is not None and not (
+        isinstance(digests, Mapping) and all(isinstance(v, str) for v in digests.values())
+    ):
+        raise ValueError("the provenance's 'file_digests' is not a mapping of paths to digests")
+    closure = None if script is None or digests is None else import_closure(script)
+    if closure is not None:
+        # a file it did not record did not exist then: reached now through the script alone (a
+        # changed file that reaches it is judged below), which no stamp covers
+        closure = [f for f in closure if f in digests]
+        now = file_digests(closure)
+        changed = [f for f in closure if now[f] != digests[f]]
+        if changed:
+            names = ", ".join(changed[:3])
+            return f"the code of {len(changed)} of the {len(closure)} files its script runs changed ({names})"
+        return None
     files = stamp.get("files")
     if files is None:
         current = source_digest(RESULT_SOURCES)
@@ -54,4 +297,4 @@ def stale_reason(stamp: Mapping[str, object]) -> str | None:
     return None
 
 
-__all__ = ["result_files", "stale_reason"]
+__all__ = ["file_digests", "import_closure", "result_files", "stale_reason"]
