@@ -122,7 +122,7 @@ def test_console_script(tmp_path):
 
 def test_json_output_of_an_infinite_error_is_strict_json_null() -> None:
     """A diverged rollout's error is infinite; ``--json`` writes it as null, never ``Infinity``."""
-    from fhnn.cli.app import finite_or_null
+    from fhnn.api.evaluate import finite_or_null
 
     metrics = {"1": {"rmse_pos": math.inf, "ade": 0.5, "mse_pos": math.nan}, "runs": [1.0, -math.inf]}
     text = json.dumps(finite_or_null(metrics), allow_nan=False)
@@ -134,3 +134,15 @@ def test_json_output_of_an_infinite_error_is_strict_json_null() -> None:
         "1": {"rmse_pos": None, "ade": 0.5, "mse_pos": None},
         "runs": [1.0, None],
     }
+
+
+def test_the_command_line_starts_without_the_functions_it_calls() -> None:
+    """``fhnn --help`` and every command load the command line without the API's modules (each
+    command imports the function it calls when it runs) or the libraries only they need."""
+    code = (
+        "import sys, fhnn.cli.app\n"
+        "print(' '.join(sorted(m for m in sys.modules if m.startswith(('fhnn.api.', 'pandas', "
+        "'matplotlib', 'scipy.stats', 'xarray')))))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["fhnn.api.defaults", "fhnn.api.report"]

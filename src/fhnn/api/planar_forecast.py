@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
+from fhnn.api.defaults import FIT_WINDOW
 from fhnn.api.planar import load_turning
 from fhnn.api.planar_controls_files import is_controlled_run, load_controlled
 from fhnn.api.planar_ensemble import is_turning_ensemble
@@ -46,15 +47,17 @@ from fhnn.evaluation.planar_start import fit_start_states
 from fhnn.files import check_output_path
 from fhnn.training.ensemble import interval, member_folders
 
-#: The seconds of each track's end the start state is fitted to, by default: on the shipmmg
-#: check's held-out manoeuvres (2 cm, 0.2° noise at ~0.5 s), fitting the first 10 s cut a
-#: perfect model's 60 s forecast error 5- to 25-fold against the smoothed start
-#: (docs/design/turning.md).
-FIT_WINDOW = 10.0
-
 #: The least noise levels, position [m] and heading [rad], a start is fitted with: the import's
 #: estimate needs five samples a track and is 0 below that.
 NOISE_FLOOR = (1e-6, 1e-6)
+
+
+def _to_body(heading, a, b) -> tuple:
+    """The world-frame vector with components ``a`` (along x) and ``b`` (along y) in the body
+    frame of ``heading`` [rad], counter-clockwise from x: its forward and port components (the
+    same unit; arrays broadcast)."""
+    c, s = np.cos(heading), np.sin(heading)
+    return c * a + s * b, -s * a + c * b
 
 
 def _body_forces(track: PlanarTrajectory, heading: np.ndarray) -> np.ndarray:
@@ -63,16 +66,14 @@ def _body_forces(track: PlanarTrajectory, heading: np.ndarray) -> np.ndarray:
     if track.body_force is not None:
         return np.asarray(track.body_force, float)
     if track.world_force is not None:
-        c, s = np.cos(heading), np.sin(heading)
         fx, fy = track.world_force[:, 0], track.world_force[:, 1]
-        return np.stack([c * fx + s * fy, -s * fx + c * fy, np.zeros_like(fx)], axis=1)
+        return np.stack([*_to_body(heading, fx, fy), np.zeros_like(fx)], axis=1)
     return np.zeros((track.t.size, 3))
 
 
 def _state(pose: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """The state ``x, y, ψ, u, v, r`` of a smoothed pose ``(3,)`` and its world-frame rate ``(3,)``."""
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    return np.array([*pose, c * rate[0] + s * rate[1], -s * rate[0] + c * rate[1], rate[2]])
+    return np.array([*pose, *_to_body(pose[2], rate[0], rate[1]), rate[2]])
 
 
 def _end_states(

@@ -12,7 +12,6 @@ import sys
 
 import typer
 
-from fhnn.api.evaluate import finite_or_null
 from fhnn.api.report import FAULT_ENV
 from fhnn.cli.options import app
 from fhnn.cli.render import err
@@ -38,7 +37,7 @@ try:
 except ImportError:  # pragma: no cover - depends on the Typer release
     pass
 
-__all__ = ["FAULT_ENV", "app", "finite_or_null", "main"]
+__all__ = ["FAULT_ENV", "app", "main"]
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -9,13 +9,6 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from fhnn.api.data import import_table as import_data
-from fhnn.api.data import info as data_info
-from fhnn.api.data import simulate as simulate_data
-from fhnn.api.describe import info as describe
-from fhnn.api.describe import is_turning
-from fhnn.api.planar import import_turning
-from fhnn.api.planar_controls_files import import_controlled_file
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, ForcingHoldOption, TimeUnitOption, app
 from fhnn.data.cleaning import GAP_STEPS, OUTLIER_SIGMAS
@@ -63,6 +56,9 @@ def simulate(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or summary.")] = False,
 ) -> None:
     """Simulate a ground-truth data set (train/val/test splits) and write it as HDF5."""
+    from fhnn.api.data import info as data_info
+    from fhnn.api.data import simulate as simulate_data
+
     dataset = simulate_data(
         scenario,
         output,
@@ -175,6 +171,11 @@ def import_table(
     Trajectories are split into train/val/test by a seeded permutation. A table with a heading
     column makes a turning body's data set (--mass, --inertia; train it with `fhnn turning train`),
     driven by known forces or by the --controls columns."""
+    from fhnn.api.data import import_table as import_data
+    from fhnn.api.data import info as data_info
+    from fhnn.api.planar import import_turning
+    from fhnn.api.planar_controls_files import import_controlled_file
+
     if has_heading(table, parse_columns(columns)):
         if area is not None or forcing is not None:
             raise ConfigError("--area and --forcing apply to a table without a heading column (a point body)")
@@ -294,6 +295,9 @@ def info(
     """Describe a data set: scenario, parameters, split sizes, and the ranges of r, speed and σ
     covered; for a turning body's, the body, the split sizes and the ranges of its states."""
     import json
+
+    from fhnn.api.describe import info as describe
+    from fhnn.api.describe import is_turning
 
     described = describe(file)
     if as_json:

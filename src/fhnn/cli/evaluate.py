@@ -10,8 +10,6 @@ import typer
 from rich import box
 from rich.table import Table
 
-from fhnn.api.evaluate import evaluate as evaluate_fit
-from fhnn.api.predict import predict as predict_fit
 from fhnn.cli import render
 from fhnn.cli.options import (
     ColumnsOption,
@@ -51,6 +49,8 @@ def evaluate(
 ) -> None:
     """Roll the best model out from each trajectory's first state and report errors at horizons.
     On an ensemble (fhnn train --seeds N): every member, and each error's mean over the members."""
+    from fhnn.api.evaluate import evaluate as evaluate_fit
+
     hs = None
     if horizons is not None:
         try:
@@ -161,6 +161,8 @@ def predict(
     imported from — its seconds, or date-times where it gave date-times — for --t0, the history and
     the forcing alike; the forecast's t is on that
     clock too, as date-times where the history gave date-times."""
+    from fhnn.api.predict import predict as predict_fit
+
     if (initial is None) == (history is None):
         raise ConfigError("give --initial x,y,vx,vy or --history TABLE (one of them)")
     state = None

@@ -7,7 +7,6 @@ from typing import Annotated
 
 import typer
 
-from fhnn.api.inspect import inspect as inspect_fit
 from fhnn.cli import render
 from fhnn.cli.options import DataArgument, RunDirArgument, app
 
@@ -26,6 +25,8 @@ def inspect(
     (intervals withheld or marked weak). On an ensemble (fhnn train --seeds N): every
     coefficient and identifiable ratio with the members' median and 90 % interval (and whether it
     covers the truth), coefficients.csv with NAME_lo/NAME_hi columns and flow.nc with u_lo, u_hi, …"""
+    from fhnn.api.inspect import inspect as inspect_fit
+
     result = inspect_fit(run_dir, data)
     for text in result.notes:
         render.note(text)

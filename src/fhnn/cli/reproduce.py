@@ -7,7 +7,6 @@ from typing import Annotated
 
 import typer
 
-from fhnn.api.reproduce import reproduce as reproduce_paper
 from fhnn.cli import render
 from fhnn.cli.options import ConfigFileOption, QuietOption, SetOption, app
 from fhnn.experiments.grid import JOB_ADAM_STEPS, JOB_LBFGS_PAIRS, JOB_SECONDS
@@ -58,6 +57,8 @@ def reproduce(
     """Regenerate the data, train every model/ablation/scenario/seed of the paper's tables, evaluate,
     and write tables (Markdown, CSV, JSON), figures (PNG, SVG), report.md and index.html into OUT.
     Finished jobs are kept: an interrupted run resumes, an unchanged one does nothing."""
+    from fhnn.api.reproduce import reproduce as reproduce_paper
+
     summary = reproduce_paper(
         out,
         quick=quick,

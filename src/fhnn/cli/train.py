@@ -7,7 +7,6 @@ from typing import Annotated
 
 import typer
 
-from fhnn.api.train import train as train_fit
 from fhnn.cli import STARTED
 from fhnn.cli.options import ConfigFileOption, QuietOption, SetOption, app
 from fhnn.models.registry import MODELS
@@ -84,6 +83,8 @@ def train(
     that differ from the ones it was started with are refused (--extend allows more steps).
     Checkpoints are written at every validation and at least every minute; Ctrl-C stops the run,
     and the same command resumes it."""
+    from fhnn.api.train import train as train_fit
+
     train_fit(
         data,
         out,

@@ -10,22 +10,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from fhnn.api.planar import evaluate_turning, figure_turning, simulate_turning, train_turning
-from fhnn.api.planar_controls_files import (
-    evaluate_controlled_run,
-    figure_controlled_run,
-    is_controlled,
-    is_controlled_run,
-    train_controlled_run,
-)
-from fhnn.api.planar_ensemble import (
-    evaluate_turning_ensemble,
-    inspect_turning_ensemble,
-    is_turning_ensemble,
-    train_turning_ensemble,
-)
-from fhnn.api.planar_forecast import FIT_WINDOW, forecast_turning
-from fhnn.api.planar_inspect import inspect_turning
+from fhnn.api.defaults import FIT_WINDOW
 from fhnn.cli import render
 from fhnn.cli.options import ColumnsOption, QuietOption, TimeUnitOption, app
 from fhnn.data.planar import read_planar
@@ -55,6 +40,8 @@ def simulate(
     quiet: QuietOption = False,
 ) -> None:
     """Simulate a turning body's data set (train/val/test splits) and write it as HDF5."""
+    from fhnn.api.planar import simulate_turning
+
     data = simulate_turning(
         scenario,
         seed=seed,
@@ -92,6 +79,10 @@ def train(
     """Train the 3-DOF FHNN (flow, added masses, damping) and write model.eqx and run.json (with
     --seeds N: an ensemble, one such run folder per member); on data imported with --controls, also
     the map from the controls to the body's forces."""
+    from fhnn.api.planar import train_turning
+    from fhnn.api.planar_controls_files import is_controlled, train_controlled_run
+    from fhnn.api.planar_ensemble import train_turning_ensemble
+
     if seeds < 1:
         raise ConfigError(f"--seeds must be at least 1, got {seeds}")
     given = {"adam_steps": adam_steps, "lbfgs_steps": lbfgs_steps, "seed": seed}
@@ -150,6 +141,14 @@ def evaluate(
     ] = None,
 ) -> None:
     """Forecast errors and added masses; for a simulation also damping and flow against its truth."""
+    from fhnn.api.planar import evaluate_turning, figure_turning
+    from fhnn.api.planar_controls_files import (
+        evaluate_controlled_run,
+        figure_controlled_run,
+        is_controlled_run,
+    )
+    from fhnn.api.planar_ensemble import is_turning_ensemble
+
     if horizon <= 0:
         raise ConfigError(f"--horizon must be positive, got {horizon:g}")
     if is_turning_ensemble(run):
@@ -201,6 +200,9 @@ def inspect(
     """Added masses and damping over the relative velocities the training data cover: prints them
     (beside the truth for a simulation) and writes coefficients.csv, damping.csv and damping.png;
     for an ensemble, the members' median and 90 % interval."""
+    from fhnn.api.planar_ensemble import is_turning_ensemble
+    from fhnn.api.planar_inspect import inspect_turning
+
     if is_turning_ensemble(run):
         _inspect_ensemble(run, data, out, max_points)
         return
@@ -255,6 +257,8 @@ def predict(
     seconds (started from the pose and body-frame velocity smoothed as `fhnn import` does), its
     last forces or controls held; write traj_id, t, x, y, heading, u, v, r (an ensemble: the
     members' median, each with _lo and _hi, a 90 % interval)."""
+    from fhnn.api.planar_forecast import forecast_turning
+
     forecast = forecast_turning(
         run,
         history,
@@ -273,6 +277,8 @@ def predict(
 
 def _evaluate_ensemble(run: Path, data: Path, horizon: float, as_json: bool, figure: Path | None) -> None:
     """``turning evaluate`` of an ensemble: each member's forecast errors and masses."""
+    from fhnn.api.planar_ensemble import evaluate_turning_ensemble
+
     if figure is not None:
         raise ConfigError(f"--figure draws one run: give a member, e.g. {run / 'seed-0'}")
     reports = evaluate_turning_ensemble(run, data, horizon=horizon)
@@ -293,6 +299,8 @@ def _evaluate_ensemble(run: Path, data: Path, horizon: float, as_json: bool, fig
 
 def _inspect_ensemble(run: Path, data: Path, out: Path | None, max_points: int) -> None:
     """``turning inspect`` of an ensemble: the members' median and interval per quantity."""
+    from fhnn.api.planar_ensemble import inspect_turning_ensemble
+
     dataset = read_planar(data)  # once: for the intervals and for its noise level
     found = inspect_turning_ensemble(run, dataset, out=out, max_points=max_points)
     rows = found.coefficients.to_dict("records")
