@@ -176,7 +176,20 @@ def render_time_budget(record: dict[str, Any]) -> str:
         ]
         for case in record["cases"].values()
     ]
-    return _table(["command", "budget [s]", "took [s]", "bound [s]", ""], rows)
+    text = _table(["command", "budget [s]", "took [s]", "bound [s]", ""], rows)
+    cont = record.get("continued")
+    if cont:
+        stops = ", ".join(
+            f"{a:,} → {b:,}" for a, b in zip(cont["adam_stopped"], cont["adam_after"], strict=False)
+        )
+        checks = "; ".join(
+            f"{name}: {'held' if held else '**failed**'}" for name, held in cont["checks"].items()
+        )
+        text += (
+            "\n\nThe cut ensemble, continued by the same command (Adam steps per member, at the cut → "
+            f"after the second command): {stops}. {checks}."
+        )
+    return text
 
 
 def render_baselines(record: dict[str, Any]) -> str:
