@@ -74,6 +74,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "quick_reproduction.py": ["quick_reproduction"],
         "quick_reproduction.py --ray": ["quick_reproduction_ray"],
         "own_data.py --speed-only": ["import_speed"],
+        "time_budget.py": ["time_budget"],
     },
 }
 

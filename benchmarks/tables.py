@@ -187,7 +187,7 @@ def render_time_budget(record: dict[str, Any]) -> str:
         )
         text += (
             "\n\nThe cut ensemble, continued by the same command (Adam steps per member, at the cut → "
-            f"after the second command): {stops}. {checks}."
+            f"after the second command): {stops}. Checks: {checks}."
         )
     return text
 
