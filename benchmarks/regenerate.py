@@ -3,6 +3,8 @@
     python benchmarks/regenerate.py          # the README's results block from the result files
     python benchmarks/regenerate.py --run    # first every benchmark (hours on 2 cores), then that
     python benchmarks/regenerate.py --run --only reproduction,fhnn_targets   # some of them
+    python benchmarks/regenerate.py --stale  # which results the current code made stale, and why
+    python benchmarks/regenerate.py --run --stale                           # remake just those
 
 ``--run`` runs, one after another, each script that answers a question and writes
 ``benchmarks/results/NAME.json`` (:data:`QUESTIONS`), then the full reproduction into
@@ -79,6 +81,35 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
 }
 
 
+def result_scripts() -> dict[str, Path]:
+    """Result name (``benchmarks/results/NAME.json``) → the script whose command writes it."""
+    here = Path(__file__).resolve().parent
+    return {
+        name: here / command.split()[0]
+        for commands in QUESTIONS.values()
+        for command, names in commands.items()
+        for name in names
+    }
+
+
+def stale_results() -> dict[str, str]:
+    """Each shown result the current code has made stale (``reproduction`` for the reproduction's
+    files), with why: :func:`fhnn.stamps.stale_reason`, a benchmark's judged by the files its
+    script runs, as ``tests/test_results_current.py`` judges them."""
+    from fhnn.stamps import stale_reason
+
+    scripts, found = result_scripts(), {}
+    for path in sorted((ROOT / "benchmarks" / "results").glob("*.json")):
+        reason = stale_reason(json.loads(path.read_text())["provenance"], scripts.get(path.stem))
+        if reason:
+            found[path.stem] = reason
+    for name in ("reproduce.json", "tables.json", "timings.json"):
+        reason = stale_reason(json.loads((ROOT / "docs" / "reproduction" / name).read_text())["provenance"])
+        if reason:
+            found["reproduction"] = reason
+    return found
+
+
 def write_readme(root: Path = ROOT) -> bool:
     """Rewrite the README's results block; returns whether it changed."""
     readme = root / "README.md"
@@ -100,10 +131,31 @@ def main() -> None:
         "benchmarks/results files, or 'reproduction'), in the order given; a regeneration spread "
         "over several sittings",
     )
+    p.add_argument(
+        "--stale",
+        action="store_true",
+        help="only the results the current code has made stale (as tests/test_results_current.py "
+        "judges them); without --run, list them, each with why and its command",
+    )
     args = p.parse_args()
+    if args.stale and args.only is not None:
+        p.error("--stale chooses the results itself: give it or --only, not both")
     here = Path(__file__).resolve().parent
     commands = {c: names for question in QUESTIONS.values() for c, names in question.items()}
     wanted = None if args.only is None else args.only.split(",")
+    if args.stale:
+        stale = stale_results()
+        wanted = list(stale)
+        for name, reason in stale.items():
+            command = next((c for c, names in commands.items() if name in names), None)
+            again = (
+                f"benchmarks/{command}" if command else "benchmarks/regenerate.py --run --only reproduction"
+            )
+            print(f"{name}: {reason}\n    python {again}")
+        if not stale:
+            print("no shown result is stale")
+        if not args.run:
+            return
     known = {n for names in commands.values() for n in names} | {"reproduction"}
     if wanted is not None and not set(wanted) <= known:
         unknown = ", ".join(sorted(set(wanted) - known))

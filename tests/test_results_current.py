@@ -42,12 +42,7 @@ def _regenerate():
 @functools.cache
 def _scripts() -> dict[str, Path]:
     """Result name → the script whose command writes it (``benchmarks/regenerate.py``)."""
-    return {
-        name: ROOT / "benchmarks" / command.split()[0]
-        for commands in _regenerate().QUESTIONS.values()
-        for command, names in commands.items()
-        for name in names
-    }
+    return _regenerate().result_scripts()
 
 
 @pytest.mark.parametrize("path", SHOWN, ids=lambda p: p.relative_to(ROOT).as_posix())
@@ -154,6 +149,10 @@ def test_a_result_is_judged_by_the_files_its_script_runs(tmp_path, monkeypatch) 
     flows.write_text(text)
     _script(bench, "from fhnn.physics import flows\n", "helper.py")
     assert stale_reason(stamp, script) is None
+    # a module it runs, removed (the package binds no such name): said in one line, not raised
+    (root / "physics" / "flows.py").rename(root / "physics" / "moved.py")
+    assert "imports fhnn.physics.flows, which is not a module" in stale_reason(stamp, script)
+    (root / "physics" / "moved.py").rename(root / "physics" / "flows.py")
     # processes of its own (the models file changed above): judged by every file
     for text in (
         "import subprocess, sys\nsubprocess.run([sys.executable, '-c', 'import fhnn'])\n",
@@ -178,8 +177,9 @@ def test_the_closure_follows_lazy_names_relative_imports_and_the_package_passed_
     (root / "physics" / "relative.py").write_text("from . import body\nfrom .flows import *\n")
     closure = import_closure(_script(bench, "import fhnn.physics.relative\n"))
     assert {"physics/relative.py", "physics/body.py", "physics/flows.py"} <= set(closure)
-    with pytest.raises(ValueError, match="imports fhnn.physics.nowhere, which is not a module"):
-        import_closure(_script(bench, "import fhnn.physics.nowhere\n"))
+    for text in ("import fhnn.physics.nowhere\n", "from fhnn.physics import flows, nowhere\n"):
+        with pytest.raises(ValueError, match="imports fhnn.physics.nowhere, which is not a module"):
+            import_closure(_script(bench, text))
 
 
 def test_the_closure_holds_every_package_module_a_script_loads() -> None:
@@ -231,3 +231,22 @@ def test_the_regeneration_writes_every_shown_result_file() -> None:
     for commands in regenerate.QUESTIONS.values():
         for command in commands:
             assert (ROOT / "benchmarks" / command.split()[0]).is_file(), command
+
+
+def test_regenerate_names_just_the_results_a_change_stales(tmp_path, monkeypatch) -> None:
+    """``benchmarks/regenerate.py --stale``'s list: with the turning model's training changed on a
+    copy of the package, the turning results and none of the point body's."""
+    import fhnn.stamps
+
+    regenerate = _regenerate()
+    assert regenerate.stale_results() == {}
+    root = _copy(tmp_path, monkeypatch)
+    planar = root / "training" / "planar.py"
+    planar.write_text(planar.read_text() + "\nEXTRA = 2\n")
+    stale = regenerate.stale_results()
+    assert {"turning_seed3", "shipmmg_seed11", "station_keeping_seed3"} <= set(stale)
+    assert not {"fhnn_targets", "laplace_exact", "reproduction"} & set(stale)
+    for name, reason in stale.items():
+        closure = fhnn.stamps.import_closure(regenerate.result_scripts()[name])
+        assert closure is None or "training/planar.py" in closure, name
+        assert "training/planar.py" in reason or "code of its" in reason, reason

@@ -157,6 +157,28 @@ def _local(name: str, names: list[str], path: Path) -> list[Path]:
     return [f for f in found if f.is_file()]
 
 
+def _defined(path: Path) -> set[str] | None:
+    """The names a module's file binds at its top level; ``None`` where it defines a module
+    ``__getattr__`` (any name)."""
+    names: set[str] = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            names.update((a.asname or a.name).split(".")[0] for a in node.names)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names.update(n.id for target in targets for n in ast.walk(target) if isinstance(n, ast.Name))
+    return None if "__getattr__" in names else names
+
+
+def _unbound(path: Path, name: str) -> bool:
+    """Whether the module file ``path`` binds no ``name`` at its top level (and defines no module
+    ``__getattr__``)."""
+    defined = _defined(path)
+    return defined is not None and name not in defined
+
+
 def _package_attributes(tree: ast.AST, bound: set[str], lazy: Mapping[str, str]) -> list[str]:
     """The names ``tree`` reads as ``fhnn.<name>`` through the names in ``bound``; every lazy
     public name where it passes the package itself on."""
@@ -197,11 +219,14 @@ def _reached(path: Path, tree: ast.AST, root: Path, lazy: Mapping[str, str]) -> 
     for name, names in imports:
         if name.split(".")[0] == "fhnn":
             module(name)
+            own = found[-1]  # the module's file: its package's __init__.py, or its .py
             for sub in names:
                 if name == "fhnn":
                     attribute(sub)
                 elif _module(f"{name}.{sub}", root) is not None:
                     module(f"{name}.{sub}")
+                elif sub != "*" and own.name == "__init__.py" and _unbound(own, sub):
+                    module(f"{name}.{sub}")  # neither a submodule nor a name of the package: refused
         elif not inside:
             found.extend(_local(name, names, path))
     for name in _package_attributes(tree, bound, lazy):
@@ -269,7 +294,10 @@ def stale_reason(stamp: Mapping[str, object], script: Path | None = None) -> str
         isinstance(digests, Mapping) and all(isinstance(v, str) for v in digests.values())
     ):
         raise ValueError("the provenance's 'file_digests' is not a mapping of paths to digests")
-    closure = None if script is None or digests is None else import_closure(script)
+    try:
+        closure = None if script is None or digests is None else import_closure(script)
+    except ValueError as e:  # a module it imports is gone: a file that imports it changed
+        return f"its script's imports cannot be followed: {e}"
     if closure is not None:
         # a file it did not record did not exist then: reached now through the script alone (a
         # changed file that reaches it is judged below), which no stamp covers
