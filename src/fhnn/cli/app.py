@@ -1,5 +1,6 @@
 """``fhnn`` command line: each command parses its options, calls one function of :mod:`fhnn.api`
-and prints what it returns.
+and prints what it returns. A command imports that function when it runs, so the command line
+starts without the API's own dependencies (``tests/test_cli.py`` checks which modules it loads).
 
 Every error caused by input (a bad option, parameter, file) is printed as one line
 ``error: <what is wrong>`` on standard error, with exit status 2 and no partial output.
