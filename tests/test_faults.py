@@ -26,11 +26,12 @@ import fhnn.training.trainer as trainer_module
 from fhnn.cli.app import FAULT_ENV, main
 from fhnn.data.dataset import write_dataset
 from fhnn.errors import ConfigError, DataFormatError
-from fhnn.files import JOURNAL, commit_files, folder_lock, recover_files
+from fhnn.files import commit_files, folder_lock, recover_files
 from fhnn.training.run import Run
 from fhnn.training.trainer import stop_reason
 
 from .conftest import PAPER_RUN, paper_train, small_dataset
+from .fault_checks import leftovers, reproduction_files
 
 #: The child takes Ctrl-C as a terminal's process does: a suite started as a background job of a
 #: non-interactive shell passes SIGINT down ignored, and a Python started so never raises
@@ -61,15 +62,6 @@ def _expect_killed(proc: subprocess.CompletedProcess[str], sig: str) -> None:
     else:
         assert proc.returncode == 130, proc.stderr
         assert "interrupted" in proc.stderr.splitlines()[-1], proc.stderr
-
-
-def _leftovers(folder: Path) -> list[str]:
-    """Temporary and pending files a killed writer may leave (hidden ``*.tmp`` / ``*.pending``)."""
-    return sorted(
-        str(p.relative_to(folder))
-        for p in folder.rglob(".*")
-        if p.name.endswith((".tmp", ".pending")) or p.name == JOURNAL
-    )
 
 
 # --- the checkpoint journal ------------------------------------------------------------------------
@@ -107,7 +99,7 @@ def test_a_commit_killed_at_any_rename_leaves_all_old_or_all_new_files(
     # 3 pending files + the journal are written before the commit point, 3 renames after it
     assert contents == ({"old"} if kill_at < 4 else {"new"}), (kill_at, contents)
     assert killed == (kill_at < 7)
-    assert _leftovers(tmp_path) == []
+    assert leftovers(tmp_path) == []
 
 
 def test_a_full_disk_keeps_the_previous_checkpoint(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -248,7 +240,7 @@ def test_training_killed_in_every_phase_resumes_to_the_same_bytes(straight: Path
     assert 200 <= steps[3] < 400 and steps[4] == 400, steps
     resumed = _cli("train", data, "-o", str(out), *TRAIN)
     assert resumed.returncode == 0, resumed.stderr
-    assert _leftovers(out) == []
+    assert leftovers(out) == []
     for name in ("model.eqx", "best.eqx", "opt_state.eqx", "run.json"):
         assert (out / name).read_bytes() == (straight / "run" / name).read_bytes(), name
 
@@ -276,38 +268,6 @@ def test_simulate_killed_keeps_the_previous_file_and_reruns_to_the_same_bytes(
 REPRODUCE = ["reproduce", "--quick", "--seeds", "2", "-q", "--set", "models=fhnn"]
 REPRODUCE += ["--set", "ablations=[]", "--set", "scenario_table=[]", "--set", "data.test_duration=120"]
 REPRODUCE += ["--set", "data.n_traj=8", "--set", "train.steps=40", "--set", "train.val_every=20"]
-
-
-def _results(out: Path) -> dict[str, bytes]:
-    """Every file a reproduction wrote that its numbers decide (not its timings, run times or the
-    date in its provenance stamp)."""
-    files = {}
-    for path in sorted(out.rglob("*")):
-        rel = str(path.relative_to(out))
-        if (
-            path.is_file()
-            and not rel.startswith(("figures", ".lock"))
-            and path.suffix not in (".html", ".md")
-        ):
-            data = path.read_bytes()
-            stamped = path.suffix == ".json" and b'"provenance"' in data
-            if path.name in ("result.json", "timings.json") or stamped:
-                info = json.loads(data)
-                if isinstance(info, dict) and isinstance(info.get("provenance"), dict):
-                    info["provenance"].pop("date")  # when the file was written, not what it holds
-                for key in (
-                    "train_seconds",
-                    "eval_seconds",
-                    "job_seconds_total",
-                    "mean_job_seconds",
-                    "mean_train_seconds",
-                    "mean_eval_seconds",
-                ):
-                    info.pop(key, None)
-                info.pop("wall_seconds_this_run", None)
-                data = json.dumps(info, sort_keys=True).encode()
-            files[rel] = data
-    return files
 
 
 def test_reproduction_killed_three_times_resumes_to_the_bytes_of_a_two_worker_run(tmp_path: Path) -> None:
@@ -338,8 +298,8 @@ def test_reproduction_killed_three_times_resumes_to_the_bytes_of_a_two_worker_ru
     final = _cli(*REPRODUCE, "-o", str(out), "--workers", "1")
     assert final.returncode == 0, final.stderr
     assert "0 of 1 data sets and 0 of 2 training jobs run, report rebuilt" in final.stdout
-    assert _leftovers(out) == []
-    a, b = _results(straight), _results(out)
+    assert leftovers(out) == []
+    a, b = reproduction_files(straight), reproduction_files(out)
     assert sorted(a) == sorted(b) and len(a) > 10
     for name in a:
         assert a[name] == b[name], name
