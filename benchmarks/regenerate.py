@@ -78,6 +78,7 @@ QUESTIONS: dict[str, dict[str, list[str]]] = {
         "own_data.py --speed-only": ["import_speed"],
         "time_budget.py": ["time_budget"],
     },
+    "Does a killed command resume?": {"reproduction_faults.py": ["reproduction_faults"]},
 }
 
 

@@ -694,6 +694,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
     kinds = (
         "own_data",
         "fhnn_targets",
+        "reproduction_faults",  # printed, not the reproduction's tables
         "reproduction",
         "baselines",
         "track_fit_solvers",

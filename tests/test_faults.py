@@ -270,7 +270,13 @@ REPRODUCE += ["--set", "ablations=[]", "--set", "scenario_table=[]", "--set", "d
 REPRODUCE += ["--set", "data.n_traj=8", "--set", "train.steps=40", "--set", "train.val_every=20"]
 
 
+@pytest.mark.slow
 def test_reproduction_killed_three_times_resumes_to_the_bytes_of_a_two_worker_run(tmp_path: Path) -> None:
+    """A second reproduction on a running one's folder is refused; one killed after a job (SIGKILL,
+    SIGINT) and in its report resumes to the bytes of an uninterrupted two-worker run. Left out of
+    the default run (69 s of a worker in a 2-core suite near its 900 s budget):
+    ``benchmarks/reproduction_faults.py`` makes the same checks on ``fhnn reproduce --quick``
+    (``benchmarks/results/reproduction_faults.json``)."""
     straight = tmp_path / "straight"
     proc = subprocess.Popen(
         _fhnn(*REPRODUCE, "-o", str(straight), "--workers", "2"),
