@@ -93,21 +93,34 @@ def result_scripts() -> dict[str, Path]:
     }
 
 
-def stale_results() -> dict[str, str]:
-    """Each shown result the current code has made stale (``reproduction`` for the reproduction's
-    files), with why: :func:`fhnn.stamps.stale_reason`, a benchmark's judged by the files its
-    script runs, as ``tests/test_results_current.py`` judges them."""
+#: The reproduction's stamped files in ``docs/reproduction`` (``--only reproduction`` remakes them).
+REPRODUCTION_FILES = ("reproduce.json", "tables.json", "timings.json")
+
+
+def shown_files() -> list[Path]:
+    """Every stamped result file the site shows: the benchmarks' and the reproduction's."""
+    results = sorted((ROOT / "benchmarks" / "results").glob("*.json"))
+    return results + [ROOT / "docs" / "reproduction" / name for name in REPRODUCTION_FILES]
+
+
+def stale_reason_of(path: Path) -> str | None:
+    """Why the shown result file ``path`` (:func:`shown_files`) is stale, or ``None``:
+    :func:`fhnn.stamps.stale_reason` of its stamp, a benchmark's judged by the files its script
+    runs, the reproduction's by every file."""
     from fhnn.stamps import stale_reason
 
-    scripts, found = result_scripts(), {}
-    for path in sorted((ROOT / "benchmarks" / "results").glob("*.json")):
-        reason = stale_reason(json.loads(path.read_text())["provenance"], scripts.get(path.stem))
+    script = result_scripts().get(path.stem) if path.parent.name == "results" else None
+    return stale_reason(json.loads(path.read_text())["provenance"], script)
+
+
+def stale_results() -> dict[str, str]:
+    """Each shown result the current code has made stale (``reproduction`` for the reproduction's
+    files), with why (:func:`stale_reason_of`)."""
+    found = {}
+    for path in shown_files():
+        reason = stale_reason_of(path)
         if reason:
-            found[path.stem] = reason
-    for name in ("reproduce.json", "tables.json", "timings.json"):
-        reason = stale_reason(json.loads((ROOT / "docs" / "reproduction" / name).read_text())["provenance"])
-        if reason:
-            found["reproduction"] = reason
+            found["reproduction" if path.name in REPRODUCTION_FILES else path.stem] = reason
     return found
 
 

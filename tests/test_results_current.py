@@ -18,13 +18,10 @@ from fhnn.runtime import PACKAGE_ROOT
 from fhnn.stamps import file_digests, import_closure, result_files, stale_reason
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The result files the site shows: the benchmarks' and the reproduction's.
-SHOWN = sorted((ROOT / "benchmarks" / "results").glob("*.json")) + [
-    ROOT / "docs" / "reproduction" / name for name in ("reproduce.json", "tables.json", "timings.json")
-]
 PROVENANCE = {"version", "commit", "dirty", "source", "python", "packages", "machine", "date"}
 
 
+@functools.cache
 def _regenerate():
     """``benchmarks/regenerate.py`` as a module."""
     import importlib.util
@@ -39,10 +36,8 @@ def _regenerate():
     return regenerate
 
 
-@functools.cache
-def _scripts() -> dict[str, Path]:
-    """Result name → the script whose command writes it (``benchmarks/regenerate.py``)."""
-    return _regenerate().result_scripts()
+#: The result files the site shows: the benchmarks' and the reproduction's.
+SHOWN = _regenerate().shown_files()
 
 
 @pytest.mark.parametrize("path", SHOWN, ids=lambda p: p.relative_to(ROOT).as_posix())
@@ -53,7 +48,7 @@ def test_a_shown_result_is_stamped_with_the_current_code(path: Path) -> None:
     assert isinstance(stamp, dict), f"{name} has no provenance"
     assert PROVENANCE <= set(stamp), f"{name}'s provenance lacks {sorted(PROVENANCE - set(stamp))}"
     # a benchmark's result is judged by the files its script runs (the reproduction's by all)
-    reason = stale_reason(stamp, _scripts().get(path.stem) if path.parent.name == "results" else None)
+    reason = _regenerate().stale_reason_of(path)
     assert reason is None, (
         f"{name} was made by other results-affecting code than the current (commit {stamp['commit']}): "
         f"{reason}; regenerate it (docs/benchmarks.md names its script)"
