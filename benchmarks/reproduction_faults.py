@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import os
 import re
-import signal
 import subprocess
 import sys
 import tempfile
@@ -35,29 +34,13 @@ from fhnn.api.report import FAULT_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from tests.fault_checks import leftovers, reproduction_files  # noqa: E402
+from tests.fault_checks import ended_as, fhnn_command, leftovers, reproduction_files  # noqa: E402
 
-#: The child takes Ctrl-C as a terminal's process does (a background job's SIGINT is ignored).
-MAIN = (
-    "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
-    "from fhnn.cli.app import main; main()"
-)
 FAULTS = ("jobs:1:KILL", "jobs:1:INT", "report:0:KILL")
 
 
 def command(out: Path, workers: int) -> list[str]:
-    return [
-        sys.executable,
-        "-c",
-        MAIN,
-        "reproduce",
-        "--quick",
-        "-q",
-        "-o",
-        str(out),
-        "--workers",
-        str(workers),
-    ]
+    return fhnn_command("reproduce", "--quick", "-q", "-o", str(out), "--workers", str(workers))
 
 
 def environment(cache: Path, fault: str | None = None) -> dict[str, str]:
@@ -95,11 +78,9 @@ def main() -> None:
             done = subprocess.run(
                 command(killed, 1), env=environment(cache, fault), capture_output=True, text=True
             )
-            if fault.endswith("KILL"):
-                ok = done.returncode == -signal.SIGKILL
-            else:
-                ok = done.returncode == 130 and "interrupted" in (done.stderr.splitlines() or [""])[-1]
-            checks[f"killed at {fault}: ended as that signal ends it"] = ok
+            checks[f"killed at {fault}: ended as that signal ends it"] = ended_as(
+                done, fault.rsplit(":", 1)[1]
+            )
             print(f"killed at {fault}: status {done.returncode} after {time.perf_counter() - t0:.1f} s")
         t0 = time.perf_counter()
         final = subprocess.run(command(killed, 1), env=environment(cache), capture_output=True, text=True)

@@ -5,9 +5,35 @@ killed-reproduction test in the default test run."""
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 from fhnn.files import JOURNAL
+
+#: The child takes Ctrl-C as a terminal's process does: a suite started as a background job of a
+#: non-interactive shell passes SIGINT down ignored, and a Python started so never raises
+#: KeyboardInterrupt — the interrupts these checks deliver would be lost.
+_MAIN = (
+    "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "from fhnn.cli.app import main; main()"
+)
+
+
+def fhnn_command(*args: str) -> list[str]:
+    """The command line of ``fhnn ARGS`` in a new interpreter that takes SIGINT as a terminal's
+    process does."""
+    return [sys.executable, "-c", _MAIN, *args]
+
+
+def ended_as(proc: subprocess.CompletedProcess[str], sig: str) -> bool:
+    """Whether ``proc``, sent ``SIG<sig>`` (``"KILL"`` or ``"INT"``), ended as that signal ends a
+    command: SIGKILL at once (status −9); SIGINT caught, with one ``interrupted`` line last and
+    status 130."""
+    if sig == "KILL":
+        return proc.returncode == -signal.SIGKILL
+    return proc.returncode == 130 and "interrupted" in (proc.stderr.splitlines() or [""])[-1]
 
 
 def leftovers(folder: Path) -> list[str]:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import errno
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -31,16 +30,7 @@ from fhnn.training.run import Run
 from fhnn.training.trainer import stop_reason
 
 from .conftest import PAPER_RUN, paper_train, small_dataset
-from .fault_checks import leftovers, reproduction_files
-
-#: The child takes Ctrl-C as a terminal's process does: a suite started as a background job of a
-#: non-interactive shell passes SIGINT down ignored, and a Python started so never raises
-#: KeyboardInterrupt — the interrupts these tests deliver would be lost.
-_MAIN = "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); from fhnn.cli.app import main; main()"
-
-
-def _fhnn(*args: str) -> list[str]:
-    return [sys.executable, "-c", _MAIN, *args]
+from .fault_checks import ended_as, fhnn_command, leftovers, reproduction_files
 
 
 def _env(fault: str | None = None) -> dict[str, str]:
@@ -52,16 +42,12 @@ def _env(fault: str | None = None) -> dict[str, str]:
 
 
 def _cli(*args: str, fault: str | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(_fhnn(*args), env=_env(fault), capture_output=True, text=True, timeout=600)
+    return subprocess.run(fhnn_command(*args), env=_env(fault), capture_output=True, text=True, timeout=600)
 
 
 def _expect_killed(proc: subprocess.CompletedProcess[str], sig: str) -> None:
     """A SIGKILL ends the process at once (status −9); a SIGINT is caught: one line, status 130."""
-    if sig == "KILL":
-        assert proc.returncode == -signal.SIGKILL, proc.stderr
-    else:
-        assert proc.returncode == 130, proc.stderr
-        assert "interrupted" in proc.stderr.splitlines()[-1], proc.stderr
+    assert ended_as(proc, sig), (proc.returncode, proc.stderr)
 
 
 # --- the checkpoint journal ------------------------------------------------------------------------
@@ -279,7 +265,7 @@ def test_reproduction_killed_three_times_resumes_to_the_bytes_of_a_two_worker_ru
     (``benchmarks/results/reproduction_faults.json``)."""
     straight = tmp_path / "straight"
     proc = subprocess.Popen(
-        _fhnn(*REPRODUCE, "-o", str(straight), "--workers", "2"),
+        fhnn_command(*REPRODUCE, "-o", str(straight), "--workers", "2"),
         env=_env(),
         stderr=subprocess.PIPE,
         text=True,
