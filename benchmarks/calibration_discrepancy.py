@@ -101,13 +101,15 @@ def confirm() -> dict:
     b = json.loads(CHOSEN.read_text())["chosen"]
     if b is None:
         raise SystemExit("error: the choosing data sets chose no b (none of the grid met the rule)")
-    out = {"seed_role": "confirming", "floor": FLOOR, "chosen": b, "sources": {}, "scored": {}}
+    out = {"seed_role": "confirming", "floor": FLOOR, "chosen": b, "data_seeds": []}
+    out |= {"sources": {}, "scored": {}}
     for tag in ("", "_noforce"):
         source = RESULTS / f"calibration_laplace_confirming{tag}.json"
         result = json.loads(source.read_text())
         case = "no_forcing" if tag else "forcing"
         sets = result["data_sets"]
         seeds_used = result["data_seeds"]
+        out["data_seeds"] = sorted(set(out["data_seeds"]) | set(seeds_used))
         out["sources"][case] = {"file": source.name, "commit": result["commit"], "data_seeds": seeds_used}
         out["scored"][case] = {"0": rescored(sets, 0.0), f"{b:g}": rescored(sets, b)}
     return out

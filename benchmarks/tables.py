@@ -376,6 +376,53 @@ def render_calibration(record: dict[str, Any]) -> str:
     return _table(header, rows) + "\n\n" + caption
 
 
+def render_calibration_discrepancy(record: dict[str, Any]) -> str:
+    """The Laplace intervals with and without the model-discrepancy sd ``b``, rescored from the
+    calibration benchmark's stored rows (``benchmarks/calibration_discrepancy.py``)."""
+    b = record["chosen"]
+    key = f"{b:g}"
+    cases = (
+        {"forcing": {"0": record["scored"]["0"], key: record["scored"][key]}}
+        if record["seed_role"] == "choosing"
+        else record["scored"]
+    )
+    header = ["quantity", "holds, b = 0", f"holds, b = {key}", "median width", "× curvature", "median |z|"]
+    out = []
+    for case, tables in cases.items():
+        plain, wide = tables["0"], tables[key]
+        rows = [
+            [
+                name,
+                f"{plain[name]['held']} of {plain[name]['given']}" if plain[name]["given"] else "withheld",
+                f"{r['held']} of {r['given']}" if r["given"] else "withheld",
+                _pct(r["median_rel_width"]),
+                _g(r["median_width_over_curvature"]),
+                _g(r["median_z"]),
+            ]
+            for name, r in wide.items()
+        ]
+        title = {"forcing": "with the known thrust", "no_forcing": "positions only"}.get(case, case)
+        out.append(f"**{title}**\n\n" + _table(header, rows))
+    if record["seed_role"] == "choosing":
+        grid = ", ".join(f"{g}: {min(r['held'] for r in t.values())}" for g, t in record["scored"].items())
+        caption = (
+            f"*Choosing data sets {record['data_seeds'][0]}–{record['data_seeds'][-1]} at floor "
+            f"{record['floor']}; the fewest data sets of 10 any quantity holds, per b: {grid}. "
+        )
+    else:
+        caption = (
+            "*Confirming data sets "
+            + "; ".join(f"{c}: `{v['file']}` at {v['commit'][:7]}" for c, v in record["sources"].items())
+            + ", rescored once. "
+        )
+    caption += (
+        f"b = {key} is the rule's choice; widths relative to the true value, × curvature the "
+        "widened interval's width over the curvature's alone; |z| is the error over the widened "
+        "sd (0.67 in the median when honest).*"
+    )
+    return "\n\n".join(out) + "\n\n" + caption
+
+
 def render_turning(record: dict[str, Any]) -> str:
     """The 3-DOF model on its own scenarios against issue 71's targets (× the target where missed)."""
     runs, targets = record["runs"], record["targets"]
@@ -698,6 +745,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
         "reproduction",
         "baselines",
         "track_fit_solvers",
+        "calibration_discrepancy",
         "calibration",
         "forecast_floor",
         "turning_choice",
