@@ -20,6 +20,7 @@ is reached through the script (or through a changed file, which makes it stale).
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 from collections.abc import Mapping
 from pathlib import Path
@@ -51,7 +52,14 @@ def file_digests(files: list[str], root: Path | None = None) -> dict[str, str]:
         files: paths relative to ``root`` (default :data:`fhnn.runtime.PACKAGE_ROOT`).
     """
     base = PACKAGE_ROOT if root is None else Path(root)
-    return {f: hashlib.sha256(_code((base / f).read_text()).encode()).hexdigest()[:16] for f in files}
+    return {f: _digest((base / f).read_text()) for f in files}
+
+
+@functools.cache
+def _digest(text: str) -> str:
+    """:func:`file_digests`' digest of source ``text``; kept per text, since judging every shown
+    result reads the same files again for each."""
+    return hashlib.sha256(_code(text).encode()).hexdigest()[:16]
 
 
 def _lazy_names(root: Path) -> dict[str, str]:
@@ -157,11 +165,17 @@ def _local(name: str, names: list[str], path: Path) -> list[Path]:
     return [f for f in found if f.is_file()]
 
 
-def _defined(path: Path) -> set[str] | None:
+def _defined(path: Path) -> frozenset[str] | None:
     """The names a module's file binds at its top level; ``None`` where it defines a module
     ``__getattr__`` (any name)."""
+    return _top_level_names(path.read_text())
+
+
+@functools.cache
+def _top_level_names(text: str) -> frozenset[str] | None:
+    """:func:`_defined` of a file's source ``text``."""
     names: set[str] = set()
-    for node in ast.parse(path.read_text()).body:
+    for node in ast.parse(text).body:
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
             names.add(node.name)
         elif isinstance(node, (ast.Import, ast.ImportFrom)):
@@ -169,7 +183,7 @@ def _defined(path: Path) -> set[str] | None:
         elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
             targets = node.targets if isinstance(node, ast.Assign) else [node.target]
             names.update(n.id for target in targets for n in ast.walk(target) if isinstance(n, ast.Name))
-    return None if "__getattr__" in names else names
+    return None if "__getattr__" in names else frozenset(names)
 
 
 def _unbound(path: Path, name: str) -> bool:
@@ -192,9 +206,35 @@ def _package_attributes(tree: ast.AST, bound: set[str], lazy: Mapping[str, str])
     return names
 
 
-def _reached(path: Path, tree: ast.AST, root: Path, lazy: Mapping[str, str]) -> list[Path]:
-    """The files the imports written in ``path`` (anywhere in it) can run: modules of the package
-    under ``root`` and, for a file outside it, helper scripts beside it.
+@functools.cache
+def _facts(
+    text: str, package: tuple[str, ...], lazy: tuple[tuple[str, str], ...]
+) -> tuple[bool, bool, tuple[tuple[str, tuple[str, ...]], ...], tuple[str, ...]]:
+    """What a file's source ``text`` (of package ``package``, ``()`` outside the package) says,
+    read once per text: whether it starts Python processes (:func:`_starts_python`) and imports
+    by name (:func:`_imports_by_name`), its imports (:func:`_imports`) and the package's
+    attributes it reads (:func:`_package_attributes`, given the lazy names ``lazy``)."""
+    tree = ast.parse(text)
+    imports, bound = _imports(tree, list(package))
+    attributes = _package_attributes(tree, bound, dict(lazy))
+    return (
+        _starts_python(tree),
+        _imports_by_name(tree),
+        tuple((name, tuple(names)) for name, names in imports),
+        tuple(attributes),
+    )
+
+
+def _reached(
+    path: Path,
+    imports: tuple[tuple[str, tuple[str, ...]], ...],
+    attributes: tuple[str, ...],
+    root: Path,
+    lazy: Mapping[str, str],
+) -> list[Path]:
+    """The files the imports written in ``path`` (anywhere in it: ``imports`` and the package's
+    ``attributes`` it reads, from :func:`_facts`) can run: modules of the package under ``root``
+    and, for a file outside it, helper scripts beside it.
 
     Raises:
         ValueError: an import names a module of the package that is not under ``root``.
@@ -215,7 +255,6 @@ def _reached(path: Path, tree: ast.AST, root: Path, lazy: Mapping[str, str]) -> 
         elif _module(f"fhnn.{name}", root) is not None:
             module(f"fhnn.{name}")
 
-    imports, bound = _imports(tree, ["fhnn", *path.relative_to(root).parent.parts] if inside else [])
     for name, names in imports:
         if name.split(".")[0] == "fhnn":
             module(name)
@@ -229,7 +268,7 @@ def _reached(path: Path, tree: ast.AST, root: Path, lazy: Mapping[str, str]) -> 
                     module(f"{name}.{sub}")  # neither a submodule nor a name of the package: refused
         elif not inside:
             found.extend(_local(name, names, path))
-    for name in _package_attributes(tree, bound, lazy):
+    for name in attributes:
         attribute(name)
     return found
 
@@ -256,6 +295,7 @@ def import_closure(script: Path, root: Path | None = None) -> list[str] | None:
     """
     base = (PACKAGE_ROOT if root is None else Path(root)).resolve()
     lazy = _lazy_names(base)
+    table = tuple(sorted(lazy.items()))
     seen: set[Path] = set()
     queue = [Path(script).resolve()]
     while queue:
@@ -263,10 +303,12 @@ def import_closure(script: Path, root: Path | None = None) -> list[str] | None:
         if path in seen:
             continue
         seen.add(path)
-        tree = ast.parse(path.read_text())
-        if _starts_python(tree) or (not path.is_relative_to(base) and _imports_by_name(tree)):
+        inside = path.is_relative_to(base)
+        package = ("fhnn", *path.relative_to(base).parent.parts) if inside else ()
+        starts, by_name, imports, attributes = _facts(path.read_text(), package, table)
+        if starts or (not inside and by_name):
             return None
-        queue.extend(p.resolve() for p in _reached(path, tree, base, lazy))
+        queue.extend(p.resolve() for p in _reached(path, imports, attributes, base, lazy))
     affecting = set(result_files_under(base))
     return sorted(
         rel for p in seen if p.is_relative_to(base) and (rel := p.relative_to(base).as_posix()) in affecting
