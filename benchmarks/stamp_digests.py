@@ -1,7 +1,9 @@
-"""Add each file's digest to the stamps of result files made before stamps recorded them.
+"""Add each file's digest to the stamps of result files made before stamps recorded them, or
+check that every shown result's stamp is what the code at its commit gives.
 
     python benchmarks/stamp_digests.py              # every file in benchmarks/results lacking them
     python benchmarks/stamp_digests.py NAME ...     # benchmarks/results/NAME.json
+    python benchmarks/stamp_digests.py --check      # audit every shown result's stamp
 
 A stamp records ``source``, the digest of the code of its ``files``; since ``file_digests``
 exists (:func:`fhnn.stamps.file_digests`), the benchmarks record each file's digest too, so a
@@ -71,10 +73,42 @@ def add_digests(path: Path) -> str:
     return f"{len(digests)} digests added"
 
 
+def audit(path: Path) -> str | None:
+    """Why the stamp of the shown result file ``path`` is not what the package at its commit
+    gives (its ``source`` over its ``files``, and each of its ``file_digests``), or ``None``
+    when it is."""
+    stamp = json.loads(path.read_text())["provenance"]
+    try:
+        digests = digests_at_commit(stamp)
+    except (ValueError, subprocess.CalledProcessError) as e:
+        return str(e)
+    recorded = stamp.get("file_digests")
+    if recorded is not None and recorded != digests:
+        wrong = sorted(f for f in set(recorded) | set(digests) if recorded.get(f) != digests.get(f))
+        return f"{len(wrong)} file digests differ from the code at its commit ({', '.join(wrong[:3])})"
+    return None
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("names", nargs="*", help="result names (default: every result file)")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="change nothing: check every shown result's stamp (the benchmarks' and the "
+        "reproduction's) against the code at its commit; exit 1 if any differs",
+    )
     args = p.parse_args()
+    if args.check:
+        import regenerate
+
+        failed = 0
+        for path in regenerate.shown_files():
+            reason = audit(path)
+            failed += reason is not None
+            print(f"{path.relative_to(ROOT)}: {reason or 'its commit gives its stamp'}")
+        print(f"{failed} of {len(regenerate.shown_files())} stamps differ from the code at their commit")
+        raise SystemExit(1 if failed else 0)
     paths = [RESULTS / f"{n}.json" for n in args.names] or sorted(RESULTS.glob("*.json"))
     for path in paths:
         if not path.is_file():
