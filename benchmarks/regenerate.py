@@ -5,6 +5,7 @@
     python benchmarks/regenerate.py --run --only reproduction,fhnn_targets   # some of them
     python benchmarks/regenerate.py --stale  # which results the current code made stale, and why
     python benchmarks/regenerate.py --run --stale                           # remake just those
+    python benchmarks/regenerate.py --if-changed training/tracks.py         # what a change costs
 
 ``--run`` runs, one after another, each script that answers a question and writes
 ``benchmarks/results/NAME.json`` (:data:`QUESTIONS`), then the full reproduction into
@@ -124,6 +125,49 @@ def stale_results() -> dict[str, str]:
     return found
 
 
+#: Why a result whose script is not bounded by its imports is stale (:func:`stale_if_changed`).
+EVERY_FILE = "it is judged by every file it was made with, among them"
+
+
+def stale_if_changed(files: list[str]) -> dict[str, str]:
+    """Each shown result a change to the code of ``files`` (paths relative to the package, e.g.
+    ``training/tracks.py``) would make stale, judged as :func:`stale_reason_of` judges it, with
+    why; for a change that adds no import (one that does can reach more).
+
+    Raises:
+        ValueError: a path of ``files`` is not a file of the package.
+    """
+    from fhnn.runtime import PACKAGE_ROOT
+    from fhnn.stamps import import_closure, result_files
+
+    missing = [f for f in files if not (PACKAGE_ROOT / f).is_file()]
+    if missing:
+        raise ValueError(f"no such file in the package: {', '.join(missing)}")
+    found = {}
+    for path in shown_files():
+        stamp = json.loads(path.read_text())["provenance"]
+        script = result_scripts().get(path.stem) if path.parent.name == "results" else None
+        digests = stamp.get("file_digests")
+        closure = None if script is None or digests is None else import_closure(script)
+        if closure is not None:
+            judged, why = [f for f in closure if f in digests], "its script runs"
+        else:
+            judged, why = stamp.get("files") or result_files(), EVERY_FILE
+        hit = [f for f in files if f in judged]
+        if hit:
+            found["reproduction" if path.name in REPRODUCTION_FILES else path.stem] = (
+                f"{why} {', '.join(hit)}"
+            )
+    return found
+
+
+def recorded_seconds(name: str) -> float | None:
+    """The wall time result ``name`` records of the run that made it (``wall_seconds``), if any."""
+    path = ROOT / "benchmarks" / "results" / f"{name}.json"
+    seconds = json.loads(path.read_text()).get("wall_seconds") if path.is_file() else None
+    return float(seconds) if isinstance(seconds, (int, float)) else None
+
+
 def write_readme(root: Path = ROOT) -> bool:
     """Rewrite the README's results block; returns whether it changed."""
     readme = root / "README.md"
@@ -151,7 +195,31 @@ def main() -> None:
         help="only the results the current code has made stale (as tests/test_results_current.py "
         "judges them); without --run, list them, each with why and its command",
     )
+    p.add_argument(
+        "--if-changed",
+        default=None,
+        metavar="FILES",
+        help="list the results a change to these package files (comma-separated, relative to "
+        "src/fhnn, e.g. training/tracks.py) would make stale, with the wall time each recorded; "
+        "changes nothing",
+    )
     args = p.parse_args()
+    if args.if_changed is not None:
+        if args.run or args.stale or args.only is not None:
+            p.error("--if-changed only lists: give it alone")
+        try:
+            stale = stale_if_changed([f.strip() for f in args.if_changed.split(",") if f.strip()])
+        except ValueError as e:
+            p.error(f"--if-changed: {e}")
+        for name, reason in stale.items():
+            seconds = recorded_seconds(name)
+            print(f"{name}: {reason}" + ("" if seconds is None else f" (made in {seconds / 60:.0f} min)"))
+        known = [s for s in map(recorded_seconds, stale) if s is not None]
+        print(
+            f"{len(stale)} of {len(shown_files()) - len(REPRODUCTION_FILES) + 1} shown results would be stale"
+            + (f"; {len(known)} of them record {sum(known) / 3600:.1f} h of wall time" if known else "")
+        )
+        return
     if args.stale and args.only is not None:
         p.error("--stale chooses the results itself: give it or --only, not both")
     here = Path(__file__).resolve().parent

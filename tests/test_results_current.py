@@ -230,15 +230,20 @@ def test_the_regeneration_writes_every_shown_result_file() -> None:
 
 def test_regenerate_names_just_the_results_a_change_stales(tmp_path, monkeypatch) -> None:
     """``benchmarks/regenerate.py --stale``'s list: with the turning model's training changed on a
-    copy of the package, the turning results and none of the point body's."""
+    copy of the package, the turning results and none of the point body's, just those
+    ``--if-changed`` named before the change."""
     import fhnn.stamps
 
     regenerate = _regenerate()
     assert regenerate.stale_results() == {}
+    predicted = regenerate.stale_if_changed(["training/planar.py"])  # --if-changed, before the change
+    with pytest.raises(ValueError, match="no such file in the package: training/gone.py"):
+        regenerate.stale_if_changed(["training/gone.py"])
     root = _copy(tmp_path, monkeypatch)
     planar = root / "training" / "planar.py"
     planar.write_text(planar.read_text() + "\nEXTRA = 2\n")
     stale = regenerate.stale_results()
+    assert set(stale) == set(predicted)
     assert {"turning_seed3", "shipmmg_seed11", "station_keeping_seed3"} <= set(stale)
     assert not {"fhnn_targets", "laplace_exact", "reproduction"} & set(stale)
     for name, reason in stale.items():
