@@ -47,9 +47,10 @@ _STARTED = {**provenance(), "files": _FILES, "file_digests": file_digests(_FILES
 
 def stamp() -> dict:
     """The provenance a result file records (:func:`fhnn.runtime.provenance`, taken as the
-    script started; its date when the result is written): its ``commit`` (with ``+dirty`` where
-    the package's source had changes) at the top, for the docs' list."""
-    record = {**_STARTED, "date": provenance()["date"]}
+    script started; its ``date`` when the result is written, ``started`` when the script
+    started): its ``commit`` (with ``+dirty`` where the package's source had changes) at the
+    top, for the docs' list."""
+    record = {**_STARTED, "started": _STARTED["date"], "date": provenance()["date"]}
     commit = record["commit"] or "unknown"
     return {"commit": commit + ("+dirty" if record["dirty"] else ""), "provenance": record}
 

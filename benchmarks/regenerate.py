@@ -162,10 +162,22 @@ def stale_if_changed(files: list[str]) -> dict[str, str]:
 
 
 def recorded_seconds(name: str) -> float | None:
-    """The wall time result ``name`` records of the run that made it (``wall_seconds``), if any."""
+    """The wall time result ``name`` records of the run that made it (``wall_seconds``, else from
+    its stamp's ``started`` to its ``date``), if any."""
+    import datetime
+
     path = ROOT / "benchmarks" / "results" / f"{name}.json"
-    seconds = json.loads(path.read_text()).get("wall_seconds") if path.is_file() else None
-    return float(seconds) if isinstance(seconds, (int, float)) else None
+    if not path.is_file():
+        return None
+    record = json.loads(path.read_text())
+    seconds = record.get("wall_seconds")
+    if isinstance(seconds, (int, float)):
+        return float(seconds)
+    stamp = record.get("provenance", {})
+    if "started" not in stamp:
+        return None
+    began, ended = (datetime.datetime.fromisoformat(stamp[k]) for k in ("started", "date"))
+    return (ended - began).total_seconds()
 
 
 def write_readme(root: Path = ROOT) -> bool:
