@@ -41,6 +41,7 @@ import fhnn  # noqa: F401  (before the rest: float64, and Equinox's runtime chec
 import atexit
 import shutil
 import tempfile
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -48,7 +49,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
-from fhnn.data.dataset import Dataset
+from fhnn.data.dataset import Dataset, write_dataset
 from fhnn.data.simulate import SimulationConfig, simulate_dataset
 from fhnn.experiments.executors import FAST_COMPILE_FLAGS
 from fhnn.models.fhnn import FHNNConfig
@@ -164,3 +165,12 @@ def run_cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, s
         main(argv)
     captured = capsys.readouterr()
     return info.value.code, captured.out, captured.err
+
+
+@pytest.fixture(scope="module")
+def data_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small ``steady_vortex`` data set written once per test module (``d.h5``)."""
+    folder = tmp_path_factory.mktemp("data")
+    return write_dataset(
+        small_dataset("steady_vortex", n_traj=6, duration=2.0, test_duration=3.0), folder / "d.h5"
+    )

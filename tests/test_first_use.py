@@ -17,21 +17,7 @@ from fhnn.errors import DataFormatError
 from fhnn.training.run import Run
 
 from .conftest import paper_fhnn, paper_train, small_dataset
-
-
-def cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as info:
-        main(argv)
-    captured = capsys.readouterr()
-    return info.value.code, captured.out, captured.err
-
-
-@pytest.fixture(scope="module")
-def data_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("data")
-    return write_dataset(
-        small_dataset("steady_vortex", n_traj=6, duration=2.0, test_duration=3.0), folder / "d.h5"
-    )
+from .conftest import run_cli as cli
 
 
 @pytest.fixture(scope="module")

@@ -11,9 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from fhnn.cli.app import main
 from fhnn.config import read_settings_file
-from fhnn.data.dataset import read_dataset, write_dataset
+from fhnn.data.dataset import read_dataset
 from fhnn.errors import ConfigError
 from fhnn.training.plans import (
     DEFAULT_PLAN,
@@ -27,22 +26,7 @@ from fhnn.training.plans import (
 from fhnn.training.run import RunConfig
 from fhnn.training.train_config import WARMUP_ACCEPT
 
-from .conftest import small_dataset
-
-
-def cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as info:
-        main(argv)
-    captured = capsys.readouterr()
-    return info.value.code, captured.out, captured.err
-
-
-@pytest.fixture(scope="module")
-def data_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("data")
-    return write_dataset(
-        small_dataset("steady_vortex", n_traj=6, duration=2.0, test_duration=3.0), folder / "d.h5"
-    )
+from .conftest import run_cli as cli
 
 
 @pytest.mark.parametrize(
