@@ -67,9 +67,8 @@ def test_a_result_made_with_a_changed_or_removed_file_is_stale(tmp_path, monkeyp
     shutil.copytree(PACKAGE_ROOT, root, ignore=shutil.ignore_patterns("__pycache__"))
     monkeypatch.setattr(fhnn.stamps, "PACKAGE_ROOT", root)
     files = fhnn.stamps.result_files()
-    digest = fhnn.runtime.source_digest.__wrapped__  # uncached: the copy changes under the test
-    stamp = {"source": digest(tuple(files), root), "files": files}
-    monkeypatch.setattr(fhnn.stamps, "source_digest", lambda parts: digest(parts, root))
+    stamp = {"source": fhnn.runtime.source_digest.__wrapped__(tuple(files), root), "files": files}
+    assert fhnn.stamps.source_now(files) == stamp["source"]  # the runtime's digest, read now
     assert fhnn.stamps.stale_reason(stamp) is None
     (root / "physics" / "added_later.py").write_text("X = 1\n")
     assert fhnn.stamps.stale_reason(stamp) is None
@@ -86,17 +85,14 @@ def test_a_result_made_with_a_changed_or_removed_file_is_stale(tmp_path, monkeyp
 
 
 def _copy(tmp_path, monkeypatch) -> Path:
-    """A copy of the package that :mod:`fhnn.stamps` judges against (its digests uncached)."""
+    """A copy of the package that :mod:`fhnn.stamps` judges against."""
     import shutil
 
-    import fhnn.runtime
     import fhnn.stamps
 
     root = tmp_path / "fhnn"
     shutil.copytree(PACKAGE_ROOT, root, ignore=shutil.ignore_patterns("__pycache__"))
     monkeypatch.setattr(fhnn.stamps, "PACKAGE_ROOT", root)
-    digest = fhnn.runtime.source_digest.__wrapped__
-    monkeypatch.setattr(fhnn.stamps, "source_digest", lambda parts: digest(parts, root))
     return root
 
 
@@ -115,7 +111,7 @@ def test_a_result_is_judged_by_the_files_its_script_runs(tmp_path, monkeypatch) 
     root = _copy(tmp_path, monkeypatch)
     files = fhnn.stamps.result_files()
     stamp = {
-        "source": fhnn.stamps.source_digest(tuple(files)),
+        "source": fhnn.stamps.source_now(files),
         "files": files,
         "file_digests": file_digests(files),
     }

@@ -25,7 +25,7 @@ import hashlib
 from collections.abc import Mapping
 from pathlib import Path
 
-from fhnn.runtime import PACKAGE_ROOT, RESULT_SOURCES, _code, source_digest
+from fhnn.runtime import PACKAGE_ROOT, RESULT_SOURCES, _code
 
 
 def result_files() -> list[str]:
@@ -55,11 +55,30 @@ def file_digests(files: list[str], root: Path | None = None) -> dict[str, str]:
     return {f: _digest((base / f).read_text()) for f in files}
 
 
+def source_now(files: list[str] | tuple[str, ...], root: Path | None = None) -> str:
+    """:func:`fhnn.runtime.source_digest` of ``files`` (paths relative to ``root``, default
+    :data:`fhnn.runtime.PACKAGE_ROOT`) as they are now: that function reads the files once per
+    process, so it would miss a change made after a first call; this one reads them every time
+    (each text's syntax tree kept, as :func:`file_digests` keeps its digest)."""
+    base = PACKAGE_ROOT if root is None else Path(root)
+    h = hashlib.sha256()
+    for path in sorted(base / f for f in files):
+        h.update(path.relative_to(base).as_posix().encode() + b"\0")
+        h.update(_syntax(path.read_text()).encode() + b"\0")
+    return h.hexdigest()[:16]
+
+
+@functools.cache
+def _syntax(text: str) -> str:
+    """:func:`fhnn.runtime._code` of source ``text``, kept per text."""
+    return _code(text)
+
+
 @functools.cache
 def _digest(text: str) -> str:
     """:func:`file_digests`' digest of source ``text``; kept per text, since judging every shown
     result reads the same files again for each."""
-    return hashlib.sha256(_code(text).encode()).hexdigest()[:16]
+    return hashlib.sha256(_syntax(text).encode()).hexdigest()[:16]
 
 
 def _lazy_names(root: Path) -> dict[str, str]:
@@ -352,7 +371,7 @@ def stale_reason(stamp: Mapping[str, object], script: Path | None = None) -> str
         return None
     files = stamp.get("files")
     if files is None:
-        current = source_digest(RESULT_SOURCES)
+        current = source_now(result_files())
         if stamp["source"] != current:
             return f"its source {stamp['source']} is not the current {current}"
         return None
@@ -361,10 +380,10 @@ def stale_reason(stamp: Mapping[str, object], script: Path | None = None) -> str
     missing = [f for f in files if not (PACKAGE_ROOT / f).is_file()]
     if missing:
         return f"{len(missing)} of the files it was made with are gone ({', '.join(missing[:3])})"
-    current = source_digest(tuple(files))
+    current = source_now(files)
     if stamp["source"] != current:
         return f"the code of its {len(files)} files changed (source {stamp['source']}, now {current})"
     return None
 
 
-__all__ = ["file_digests", "import_closure", "result_files", "stale_reason"]
+__all__ = ["file_digests", "import_closure", "result_files", "source_now", "stale_reason"]
