@@ -63,9 +63,10 @@ def fit_held_starts(model, data, window: float, steps: int):
     def misfit(p, w):
         return jnp.mean(pt.pose_residuals(eqx.combine(p, static), w.start, w, scale, 2) ** 2)
 
-    before = float(eqx.filter_jit(misfit)(params, w_val))
+    val_misfit = eqx.filter_jit(lambda p: misfit(p, w_val))  # the windows are no pytree
+    before = float(val_misfit(params))
     fitted, history = pt._lbfgs(lambda p: misfit(p, w_train), params, steps)
-    after = float(eqx.filter_jit(misfit)(fitted, w_val))
+    after = float(val_misfit(fitted))
     kept = bool(after < before)
     chosen = eqx.combine(fitted if kept else params, static)
     return chosen, before, after, kept, history, time.perf_counter() - begin
