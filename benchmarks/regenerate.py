@@ -104,14 +104,23 @@ def shown_files() -> list[Path]:
     return results + [ROOT / "docs" / "reproduction" / name for name in REPRODUCTION_FILES]
 
 
+def script_of(path: Path) -> Path | None:
+    """The script that writes the shown result file ``path``; ``None`` for the reproduction's."""
+    return result_scripts().get(path.stem) if path.parent.name == "results" else None
+
+
+def result_name(path: Path) -> str:
+    """The name a shown result file goes by: its stem, ``reproduction`` for the reproduction's."""
+    return "reproduction" if path.name in REPRODUCTION_FILES else path.stem
+
+
 def stale_reason_of(path: Path) -> str | None:
     """Why the shown result file ``path`` (:func:`shown_files`) is stale, or ``None``:
     :func:`fhnn.stamps.stale_reason` of its stamp, a benchmark's judged by the files its script
     runs, the reproduction's by every file."""
     from fhnn.stamps import stale_reason
 
-    script = result_scripts().get(path.stem) if path.parent.name == "results" else None
-    return stale_reason(json.loads(path.read_text())["provenance"], script)
+    return stale_reason(json.loads(path.read_text())["provenance"], script_of(path))
 
 
 def stale_results() -> dict[str, str]:
@@ -121,7 +130,7 @@ def stale_results() -> dict[str, str]:
     for path in shown_files():
         reason = stale_reason_of(path)
         if reason:
-            found["reproduction" if path.name in REPRODUCTION_FILES else path.stem] = reason
+            found[result_name(path)] = reason
     return found
 
 
@@ -138,26 +147,17 @@ def stale_if_changed(files: list[str]) -> dict[str, str]:
         ValueError: a path of ``files`` is not a file of the package.
     """
     from fhnn.runtime import PACKAGE_ROOT
-    from fhnn.stamps import import_closure, result_files
+    from fhnn.stamps import judged_files
 
     missing = [f for f in files if not (PACKAGE_ROOT / f).is_file()]
     if missing:
         raise ValueError(f"no such file in the package: {', '.join(missing)}")
     found = {}
     for path in shown_files():
-        stamp = json.loads(path.read_text())["provenance"]
-        script = result_scripts().get(path.stem) if path.parent.name == "results" else None
-        digests = stamp.get("file_digests")
-        closure = None if script is None or digests is None else import_closure(script)
-        if closure is not None:
-            judged, why = [f for f in closure if f in digests], "its script runs"
-        else:
-            judged, why = stamp.get("files") or result_files(), EVERY_FILE
+        judged, bounded = judged_files(json.loads(path.read_text())["provenance"], script_of(path))
         hit = [f for f in files if f in judged]
         if hit:
-            found["reproduction" if path.name in REPRODUCTION_FILES else path.stem] = (
-                f"{why} {', '.join(hit)}"
-            )
+            found[result_name(path)] = f"{'its script runs' if bounded else EVERY_FILE} {', '.join(hit)}"
     return found
 
 
@@ -223,10 +223,11 @@ def main() -> None:
             stale = stale_if_changed([f.strip() for f in args.if_changed.split(",") if f.strip()])
         except ValueError as e:
             p.error(f"--if-changed: {e}")
+        recorded = {name: recorded_seconds(name) for name in stale}
         for name, reason in stale.items():
-            seconds = recorded_seconds(name)
+            seconds = recorded[name]
             print(f"{name}: {reason}" + ("" if seconds is None else f" (made in {seconds / 60:.0f} min)"))
-        known = [s for s in map(recorded_seconds, stale) if s is not None]
+        known = [s for s in recorded.values() if s is not None]
         print(
             f"{len(stale)} of {len(shown_files()) - len(REPRODUCTION_FILES) + 1} shown results would be stale"
             + (f"; {len(known)} of them record {sum(known) / 3600:.1f} h of wall time" if known else "")

@@ -102,12 +102,12 @@ def main() -> None:
     if args.check:
         import regenerate
 
-        failed = 0
-        for path in regenerate.shown_files():
+        shown, failed = regenerate.shown_files(), 0
+        for path in shown:
             reason = audit(path)
             failed += reason is not None
             print(f"{path.relative_to(ROOT)}: {reason or 'its commit gives its stamp'}")
-        print(f"{failed} of {len(regenerate.shown_files())} stamps differ from the code at their commit")
+        print(f"{failed} of {len(shown)} stamps differ from the code at their commit")
         raise SystemExit(1 if failed else 0)
     paths = [RESULTS / f"{n}.json" for n in args.names] or sorted(RESULTS.glob("*.json"))
     for path in paths:

@@ -184,15 +184,10 @@ def _local(name: str, names: list[str], path: Path) -> list[Path]:
     return [f for f in found if f.is_file()]
 
 
-def _defined(path: Path) -> frozenset[str] | None:
-    """The names a module's file binds at its top level; ``None`` where it defines a module
-    ``__getattr__`` (any name)."""
-    return _top_level_names(path.read_text())
-
-
 @functools.cache
 def _top_level_names(text: str) -> frozenset[str] | None:
-    """:func:`_defined` of a file's source ``text``."""
+    """The names a module's source ``text`` binds at its top level; ``None`` where it defines a
+    module ``__getattr__`` (any name)."""
     names: set[str] = set()
     for node in ast.parse(text).body:
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
@@ -208,7 +203,7 @@ def _top_level_names(text: str) -> frozenset[str] | None:
 def _unbound(path: Path, name: str) -> bool:
     """Whether the module file ``path`` binds no ``name`` at its top level (and defines no module
     ``__getattr__``)."""
-    defined = _defined(path)
+    defined = _top_level_names(path.read_text())
     return defined is not None and name not in defined
 
 
@@ -334,6 +329,25 @@ def import_closure(script: Path, root: Path | None = None) -> list[str] | None:
     )
 
 
+def judged_files(stamp: Mapping[str, object], script: Path | None = None) -> tuple[object, bool]:
+    """The files whose code a result stamped with ``stamp`` is judged by, and whether they are
+    bounded by its script: with ``script`` and the stamp's ``file_digests``, the files of
+    :func:`import_closure` it recorded (``True``); else the stamp's ``files`` as recorded, or
+    every results-affecting file where it has none (``False``).
+
+    Raises:
+        ValueError: the script's imports cannot be followed (:func:`import_closure`).
+    """
+    digests = stamp.get("file_digests")
+    closure = None if script is None or digests is None else import_closure(script)
+    if closure is not None:
+        # a file it did not record did not exist then: reached now through the script alone (a
+        # changed file that reaches it is judged too), which no stamp covers
+        return [f for f in closure if f in digests], True
+    files = stamp.get("files")
+    return (result_files() if files is None else files), False
+
+
 def stale_reason(stamp: Mapping[str, object], script: Path | None = None) -> str | None:
     """Why a result stamped with ``stamp`` (a provenance record) was made by other code than the
     current, or ``None`` when it was not.
@@ -356,22 +370,19 @@ def stale_reason(stamp: Mapping[str, object], script: Path | None = None) -> str
     ):
         raise ValueError("the provenance's 'file_digests' is not a mapping of paths to digests")
     try:
-        closure = None if script is None or digests is None else import_closure(script)
+        judged, bounded = judged_files(stamp, script)
     except ValueError as e:  # a module it imports is gone: a file that imports it changed
         return f"its script's imports cannot be followed: {e}"
-    if closure is not None:
-        # a file it did not record did not exist then: reached now through the script alone (a
-        # changed file that reaches it is judged below), which no stamp covers
-        closure = [f for f in closure if f in digests]
-        now = file_digests(closure)
-        changed = [f for f in closure if now[f] != digests[f]]
+    if bounded:
+        now = file_digests(judged)
+        changed = [f for f in judged if now[f] != digests[f]]
         if changed:
             names = ", ".join(changed[:3])
-            return f"the code of {len(changed)} of the {len(closure)} files its script runs changed ({names})"
+            return f"the code of {len(changed)} of the {len(judged)} files its script runs changed ({names})"
         return None
     files = stamp.get("files")
     if files is None:
-        current = source_now(result_files())
+        current = source_now(judged)
         if stamp["source"] != current:
             return f"its source {stamp['source']} is not the current {current}"
         return None
@@ -386,4 +397,4 @@ def stale_reason(stamp: Mapping[str, object], script: Path | None = None) -> str
     return None
 
 
-__all__ = ["file_digests", "import_closure", "result_files", "source_now", "stale_reason"]
+__all__ = ["file_digests", "import_closure", "judged_files", "result_files", "source_now", "stale_reason"]
