@@ -448,6 +448,28 @@ def render_turning_track_fit(record: dict[str, Any]) -> str:
     return _table(header, rows) + "\n\n" + caption
 
 
+def render_turning_lbfgs_pairs(record: dict[str, Any]) -> str:
+    """The 3-DOF training with more pairs in its L-BFGS phase, one row per pair count."""
+    confirming = record["seed_role"] == "confirming"
+    header = ["L-BFGS pairs", "validation loss", "val RMSE(pos) 5 s [m]", "val heading [rad]", "training [s]"]
+    if confirming:
+        header += ["test RMSE(pos) 5 s [m]", "test heading [rad]"]
+    rows = []
+    for pairs, run in record["runs"].items():
+        val = run["val_forecast"]
+        row = [f"{int(pairs):,}", _g(run["val_loss"]), _g(val["rmse_pos"]), _g(val["rmse_heading"])]
+        row.append(f"{run['train_seconds']:.0f}")
+        if confirming:
+            row += [_g(run["test"]["forecast"]["rmse_pos"]), _g(run["test"]["forecast"]["rmse_heading"])]
+        rows.append(row)
+    caption = (
+        f"*`{record['scenario']}`, data seed {record['data_seed']} ({record['seed_role']}), "
+        f"{record['train_pairs']:,} training pairs; the forecasts from the true first states, "
+        f"at {record['horizon']:g} s.*"
+    )
+    return _table(header, rows) + "\n\n" + caption
+
+
 def render_turning(record: dict[str, Any]) -> str:
     """The 3-DOF model on its own scenarios against issue 71's targets (× the target where missed)."""
     runs, targets = record["runs"], record["targets"]
@@ -777,6 +799,7 @@ def render(name: str, record: dict[str, Any], folder: str = "benchmarks/results"
         "turning_table",
         "turning_intervals",
         "turning_track_fit",
+        "turning_lbfgs_pairs",
         "turning",
         "station_keeping",
         "shipmmg_controls",
