@@ -448,27 +448,20 @@ def render_turning_track_fit(record: dict[str, Any]) -> str:
     return _table(header, rows) + "\n\n" + caption
 
 
+def _turning_val_cells(run: dict[str, Any]) -> list[str]:
+    """A 3-DOF training's validation loss, validation forecast errors and training seconds."""
+    val = run["val_forecast"]
+    return [_g(run["val_loss"]), _g(val["rmse_pos"]), _g(val["rmse_heading"]), f"{run['train_seconds']:.0f}"]
+
+
+#: The columns of :func:`_turning_val_cells`.
+TURNING_VAL_HEADER = ["validation loss", "val RMSE(pos) 5 s [m]", "val heading [rad]", "training [s]"]
+
+
 def render_turning_coverage(record: dict[str, Any]) -> str:
     """The 3-DOF defaults trained on more trajectories, judged on the data seed's validation split."""
-    header = [
-        "training trajectories",
-        "validation loss",
-        "val RMSE(pos) 5 s [m]",
-        "val heading [rad]",
-        "training [s]",
-    ]
-    rows = []
-    for run in record["runs"].values():
-        val = run["val_forecast"]
-        rows.append(
-            [
-                str(run["train_trajectories"]),
-                _g(run["val_loss"]),
-                _g(val["rmse_pos"]),
-                _g(val["rmse_heading"]),
-                f"{run['train_seconds']:.0f}",
-            ]
-        )
+    header = ["training trajectories", *TURNING_VAL_HEADER]
+    rows = [[str(run["train_trajectories"]), *_turning_val_cells(run)] for run in record["runs"].values()]
     extra = ", ".join(str(s) for s in record["extra_seeds"])
     caption = (
         f"*`{record['scenario']}`, data seed {record['data_seed']} ({record['seed_role']}); the "
@@ -483,14 +476,12 @@ def render_turning_coverage(record: dict[str, Any]) -> str:
 def render_turning_lbfgs_pairs(record: dict[str, Any]) -> str:
     """The 3-DOF training with more pairs in its L-BFGS phase, one row per pair count."""
     confirming = record["seed_role"] == "confirming"
-    header = ["L-BFGS pairs", "validation loss", "val RMSE(pos) 5 s [m]", "val heading [rad]", "training [s]"]
+    header = ["L-BFGS pairs", *TURNING_VAL_HEADER]
     if confirming:
         header += ["test RMSE(pos) 5 s [m]", "test heading [rad]"]
     rows = []
     for pairs, run in record["runs"].items():
-        val = run["val_forecast"]
-        row = [f"{int(pairs):,}", _g(run["val_loss"]), _g(val["rmse_pos"]), _g(val["rmse_heading"])]
-        row.append(f"{run['train_seconds']:.0f}")
+        row = [f"{int(pairs):,}", *_turning_val_cells(run)]
         if confirming:
             row += [_g(run["test"]["forecast"]["rmse_pos"]), _g(run["test"]["forecast"]["rmse_heading"])]
         rows.append(row)

@@ -22,8 +22,8 @@ import json
 import time
 
 import numpy as np
-from _common import check_choosing_seed, stamp
-from turning_track_fit import DESIGN_DATA, HORIZON, val_forecast
+from _common import check_choosing_seed
+from turning_track_fit import val_forecast, write_record
 
 from fhnn.api.planar import simulate_turning, train_turning
 
@@ -59,19 +59,14 @@ def main() -> None:
             "val_forecast": val_forecast(fit.model, data),
         }
         print(f"{name}: {json.dumps(runs[name], default=float)}", flush=True)
-    record = {
-        **stamp(),
-        "data_seed": args.data_seed,
-        "seed_role": "choosing",
-        "extra_seeds": extra_seeds,
-        "scenario": args.scenario,
-        "horizon": HORIZON,
-        "runs": runs,
-        "wall_seconds": time.perf_counter() - start,
-    }
-    target = DESIGN_DATA / f"turning_coverage_seed{args.data_seed}_{args.scenario}.json"
-    target.write_text(json.dumps(record, indent=1, default=float))
-    print(f"wrote {target}")
+    write_record(
+        f"turning_coverage_seed{args.data_seed}_{args.scenario}",
+        args,
+        "choosing",
+        start,
+        extra_seeds=extra_seeds,
+        runs=runs,
+    )
 
 
 if __name__ == "__main__":

@@ -23,8 +23,8 @@ import argparse
 import json
 import time
 
-from _common import seed_role, stamp
-from turning_track_fit import DESIGN_DATA, HORIZON, val_forecast
+from _common import seed_role
+from turning_track_fit import val_forecast, write_record
 
 from fhnn.api.planar import evaluate_turning, simulate_turning, train_turning
 from fhnn.training.planar import PlanarTrainConfig
@@ -51,19 +51,14 @@ def main() -> None:
             run["test"] = {k: report[k] for k in ("forecast", "added_mass", "damping", "flow")}
         runs[str(pairs)] = run
         print(f"lbfgs_pairs {pairs}: {json.dumps(run, default=float)}", flush=True)
-    record = {
-        **stamp(),
-        "data_seed": args.data_seed,
-        "seed_role": role,
-        "scenario": args.scenario,
-        "horizon": HORIZON,
-        "train_pairs": int(sum(n - 1 for n in data.splits["train"].lengths)),
-        "runs": runs,
-        "wall_seconds": time.perf_counter() - start,
-    }
-    target = DESIGN_DATA / f"turning_lbfgs_pairs_seed{args.data_seed}_{args.scenario}.json"
-    target.write_text(json.dumps(record, indent=1, default=float))
-    print(f"wrote {target}")
+    write_record(
+        f"turning_lbfgs_pairs_seed{args.data_seed}_{args.scenario}",
+        args,
+        role,
+        start,
+        train_pairs=int(sum(n - 1 for n in data.splits["train"].lengths)),
+        runs=runs,
+    )
 
 
 if __name__ == "__main__":

@@ -35,6 +35,24 @@ DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
 HORIZON = 5.0
 
 
+def write_record(stem: str, args: argparse.Namespace, role: str, start: float, **fields: object) -> None:
+    """Write ``docs/design/data/STEM.json``: the stamp, ``args.data_seed``, its ``role``,
+    ``args.scenario`` and :data:`HORIZON`, then ``fields``, then the wall seconds since ``start``
+    (a :func:`time.perf_counter` reading)."""
+    record = {
+        **stamp(),
+        "data_seed": args.data_seed,
+        "seed_role": role,
+        "scenario": args.scenario,
+        "horizon": HORIZON,
+        **fields,
+        "wall_seconds": time.perf_counter() - start,
+    }
+    target = DESIGN_DATA / f"{stem}.json"
+    target.write_text(json.dumps(record, indent=1, default=float))
+    print(f"wrote {target}")
+
+
 def val_forecast(model, data) -> dict:
     """RMSE of position and heading at :data:`HORIZON` on the validation split."""
     split = data.splits["val"]
@@ -117,22 +135,17 @@ def main() -> None:
             "val_forecast": val_forecast(model, data),
         }
         print(f"window {window:g} s: {fits[f'{window:g}']}", flush=True)
-    record = {
-        **stamp(),
-        "data_seed": args.data_seed,
-        "seed_role": "choosing",
-        "scenario": args.scenario,
-        "horizon": HORIZON,
-        "steps": args.steps,
-        "starts": "held" if args.hold_starts else "fitted",
-        "one_step": one_step,
-        "track_fits": fits,
-        "wall_seconds": time.perf_counter() - start,
-    }
     held = "_held_starts" if args.hold_starts else ""
-    target = DESIGN_DATA / f"turning_track_fit_seed{args.data_seed}_{args.scenario}{held}.json"
-    target.write_text(json.dumps(record, indent=1, default=float))
-    print(f"wrote {target}")
+    write_record(
+        f"turning_track_fit_seed{args.data_seed}_{args.scenario}{held}",
+        args,
+        "choosing",
+        start,
+        steps=args.steps,
+        starts="held" if args.hold_starts else "fitted",
+        one_step=one_step,
+        track_fits=fits,
+    )
 
 
 if __name__ == "__main__":

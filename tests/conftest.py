@@ -31,8 +31,8 @@ TEST_ONLY_XLA_FLAG = "--xla_cpu_use_fusion_emitters=false"
 #: took 145 s against 159 s with it, back to back on 2 cores (2026-12-06).
 #: And each program is code-generated as one LLVM module
 #: (``--xla_cpu_parallel_codegen_split_count=1``; XLA splits it into up to 32 parts compiled in
-#: parallel): with both cores busy, the parts only add overhead; the suite took 868 s against
-#: 1,062 s, back to back on 2 cores (``docs/design/layout.md``).
+#: parallel): with both cores busy, the parts only add overhead; the suite took 868 s (927 s in a
+#: second run) against 1,062 s, back to back on 2 cores (``docs/design/layout.md``).
 TEST_XLA_FLAGS = (
     "--xla_backend_optimization_level=0 --xla_cpu_multi_thread_eigen=false "
     f"--xla_cpu_parallel_codegen_split_count=1 {TEST_ONLY_XLA_FLAG}"
