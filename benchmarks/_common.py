@@ -55,6 +55,9 @@ def stamp() -> dict:
     return {"commit": commit + ("+dirty" if record["dirty"] else ""), "provenance": record}
 
 
+#: Where the design notes' records go (choices and diagnostics, not shown results).
+DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
+
 SEEDS_FILE = Path(__file__).with_name("seeds.toml")
 
 

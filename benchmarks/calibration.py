@@ -38,10 +38,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _common import RESULTS, seeds, stamp
+from _common import DESIGN_DATA, RESULTS, seeds, stamp
 
 #: Where a choosing run's record goes (the docs' design notes cite it).
-DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
 #: The eigenvalue floors ``--method laplace`` compares (relative to the largest eigenvalue).
 FLOORS = (1e-16, 1e-15, 1e-14, 1e-13, 1e-12)
 #: Training settings of ``--fast`` (``fhnn train --set``), besides ``--steps``.

@@ -15,15 +15,13 @@ import json
 import sys
 from pathlib import Path
 
-from _common import check_choosing_seed, stamp
+from _common import DESIGN_DATA, check_choosing_seed, stamp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fhnn.data.planar import simulate_planar
 from fhnn.models.planar import PlanarModelConfig
 from fhnn.training.planar import PlanarTrainConfig, fit_planar
-
-DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
 
 
 def main() -> None:

@@ -24,13 +24,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from _common import check_choosing_seed, stamp
+from _common import DESIGN_DATA, check_choosing_seed, stamp
 
 from fhnn.api.planar import simulate_turning, train_turning
 from fhnn.evaluation.planar import forecast, forecast_errors
 from fhnn.training.planar_tracks import PlanarTrackConfig, fit_planar_tracks
 
-DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
 #: The forecast horizon of issue 71's targets [s].
 HORIZON = 5.0
 

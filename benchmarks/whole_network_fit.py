@@ -28,14 +28,13 @@ from pathlib import Path
 
 import equinox as eqx
 import own_data
-from _common import check_choosing_seed, stamp
+from _common import DESIGN_DATA, check_choosing_seed, stamp
 from jax.flatten_util import ravel_pytree
 
 from fhnn.evaluation.recovery import coefficient_recovery, flow_recovery
 from fhnn.training.tracks import ForecastScore, TrackFit, fitted_pieces, track_pieces
 
 #: Where the record goes (a design note cites it).
-DESIGN_DATA = Path(__file__).resolve().parents[1] / "docs" / "design" / "data"
 
 
 def scores(model, free, imported, scored, cfg) -> dict:
