@@ -498,6 +498,9 @@ def render_track_budget(record: dict[str, Any]) -> str:
     seeds = [str(s) for s in record["data_seeds"]]
     header = ["`train.track_samples`", "tracks fitted", "val forecast 5 s [mm], per seed"]
     header += ["÷ default (gmean)", "training [s]", "`c_l` error [%]", "drag error [%]", "flow error [%]"]
+    confirming = record["seed_role"] == "confirming"
+    if confirming:
+        header.append("test forecast 5 s [mm]")
     rows = []
     for budget, runs in record["runs"].items():
         per = [runs[s] for s in seeds]
@@ -514,11 +517,16 @@ def render_track_budget(record: dict[str, Any]) -> str:
                 f"{mean(lambda r: r['truth']['drag_mean_rel']) * 100:.3f}",
                 f"{mean(lambda r: r['truth']['flow_rel_l2']) * 100:.3f}",
             ]
+            + ([f"{mean(lambda r: r['truth']['test_forecast_5s']) * 1e3:.3f}"] if confirming else [])
         )
+    if confirming:
+        verdict = "confirmed" if record["confirmed"] else "not confirmed"
+        said = f"Own-data seed {', '.join(seeds)}, confirming {int(record['chosen']):,}: {verdict}"
+    else:
+        said = f"Own-data choosing seeds {', '.join(seeds)}; chosen: {int(record['chosen']):,}"
     caption = (
-        f"*Own-data choosing seeds {', '.join(seeds)}, validation split only for the choice (ratio "
-        f"at most {record['forecast_slack']:g}); chosen: {int(record['chosen']):,}. Training time "
-        "and the errors against the simulator's truth (means over the seeds) choose nothing; two runs "
+        f"*{said} (validation forecast ratio at most {record['forecast_slack']:g}). Training time and "
+        "the errors against the simulator's truth (means over the seeds) choose nothing; two runs "
         "shared the 2 cores throughout.*"
     )
     return _table(header, rows) + "\n\n" + caption

@@ -18,6 +18,11 @@ Only that ratio chooses. The record keeps beside it each run's training time (tw
     python benchmarks/own_data.py --data-seed N --skip-speed --out DIR/sN_default
     python benchmarks/own_data.py --data-seed N --skip-speed --out DIR/sN_B --set train.track_samples=B
     python benchmarks/track_budget.py --out DIR        # N = 0, 1, 2; B = 12500, 6250
+
+With ``--confirm B`` it reads fresh seed :data:`CONFIRM_SEED`'s runs at the default and at the
+chosen ``B`` instead (``DIR/s5_default``, ``DIR/s5_B``), and records the same ratio beside the
+held-out (test) tracks' forecast error from their first second against the truth, whatever they
+show (``docs/design/data/track_budget_confirming.json``).
 """
 
 from __future__ import annotations
@@ -34,10 +39,13 @@ DEFAULT = 25_000
 CANDIDATES = (12_500, 6_250)
 #: Largest accepted geometric-mean ratio of the validation forecast to the default's.
 FORECAST_SLACK = 1.01
+#: The fresh own-data seed that confirms a chosen budget (``benchmarks/seeds.toml``).
+CONFIRM_SEED = 5
 
 
-def _run(folder: Path, seed: int, budget: int) -> dict:
-    """The scores of ``own_data.py``'s run of data seed ``seed`` at ``budget`` in ``folder``."""
+def _run(folder: Path, seed: int, budget: int, test: bool = False) -> dict:
+    """The scores of ``own_data.py``'s run of data seed ``seed`` at ``budget`` in ``folder``;
+    with ``test``, also the held-out tracks' forecast error at 5 s against the truth."""
     tag = "defaults" if budget == DEFAULT else f"traintrack_samples{budget}"
     result = json.loads((folder / f"result_seed{seed}_{tag}.json").read_text())
     history = json.loads((folder / f"run_seed{seed}_{tag}" / "run.json").read_text())["history"]
@@ -53,6 +61,7 @@ def _run(folder: Path, seed: int, budget: int) -> dict:
             "coefficients_mean_rel": result["coefficients_mean_rel"],
             "drag_mean_rel": result["drag_mean_rel"],
             "flow_rel_l2": result["flow_rel_l2"],
+            **({"test_forecast_5s": result["test_forecasts"]["rmse_pos_vs_truth"]["5"]} if test else {}),
         },
     }
 
@@ -60,13 +69,18 @@ def _run(folder: Path, seed: int, budget: int) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True, help="folder of the sN_B run folders")
+    p.add_argument("--confirm", type=int, default=None, metavar="B", help="confirm budget B on seed 5")
     args = p.parse_args()
-    data_seeds = seeds("own_data", "choosing")
-    budgets = (DEFAULT, *CANDIDATES)
+    confirming = args.confirm is not None
+    if confirming:
+        assert CONFIRM_SEED in seeds("own_data", "confirming"), "seed 5 confirms (benchmarks/seeds.toml)"
+    data_seeds = [CONFIRM_SEED] if confirming else seeds("own_data", "choosing")
+    candidates = (args.confirm,) if confirming else CANDIDATES
+    budgets = (DEFAULT, *candidates)
     folder = lambda s, b: args.out / f"s{s}_{'default' if b == DEFAULT else b}"  # noqa: E731
-    runs = {str(b): {str(s): _run(folder(s, b), s, b) for s in data_seeds} for b in budgets}
+    runs = {str(b): {str(s): _run(folder(s, b), s, b, confirming) for s in data_seeds} for b in budgets}
     ratios, chosen = {}, DEFAULT
-    for b in CANDIDATES:
+    for b in candidates:
         score = lambda b, s: runs[str(b)][str(s)]["val_forecast_5s"]  # noqa: E731
         per_seed = [score(b, s) / score(DEFAULT, s) for s in data_seeds]
         gmean = float(np.exp(np.mean(np.log(per_seed))))
@@ -76,20 +90,22 @@ def main() -> None:
     record = {
         **stamp(),
         "benchmark": "own_data",
-        "seed_role": "choosing",
+        "seed_role": "confirming" if confirming else "choosing",
         "data_seeds": data_seeds,
         "default": DEFAULT,
         "forecast_slack": FORECAST_SLACK,
         "runs": runs,
         "ratios": ratios,
-        "chosen": chosen,
+        "chosen": args.confirm if confirming else chosen,
+        **({"confirmed": chosen == args.confirm} if confirming else {}),
     }
-    target = DESIGN_DATA / "track_budget_choosing.json"
+    target = DESIGN_DATA / f"track_budget_{'confirming' if confirming else 'choosing'}.json"
     target.write_text(json.dumps(record, indent=1))
     for b, r in ratios.items():
         cells = " ".join(f"{x:.4f}" for x in r["per_seed"])
         print(f"track_samples {b:>6}: validation forecast / default's {cells}, gmean {r['gmean']:.4f}")
-    print(f"chosen: train.track_samples = {chosen}; wrote {target}")
+    said = f"confirmed: {chosen == args.confirm}" if confirming else f"chosen: train.track_samples = {chosen}"
+    print(f"{said}; wrote {target}")
 
 
 if __name__ == "__main__":
