@@ -498,6 +498,9 @@ def render_track_budget(record: dict[str, Any]) -> str:
     seeds = [str(s) for s in record["data_seeds"]]
     header = ["`train.track_samples`", "tracks fitted", "val forecast 5 s [mm], per seed"]
     header += ["÷ default (gmean)", "training [s]", "`c_l` error [%]", "drag error [%]", "flow error [%]"]
+    timed = record.get("normal_equations_seconds", {})
+    if timed:
+        header.insert(2, f"one Gauss–Newton system [s] (seed {record['timed_on']}, alone)")
     confirming = record["seed_role"] == "confirming"
     if confirming:
         header.append("test forecast 5 s [mm]")
@@ -510,6 +513,7 @@ def render_track_budget(record: dict[str, Any]) -> str:
             [
                 f"{int(budget):,}" + (" (default)" if int(budget) == record["default"] else ""),
                 "/".join(str(r["fit_tracks"]) for r in per),
+                *([f"{timed[budget]:.1f}"] if timed else []),
                 " / ".join(f"{r['val_forecast_5s'] * 1e3:.4f}" for r in per),
                 f"{ratio['gmean']:.4f}" if ratio else "1",
                 f"{mean(lambda r: r['train_seconds']):.0f}",

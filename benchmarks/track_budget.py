@@ -66,10 +66,39 @@ def _run(folder: Path, seed: int, budget: int, test: bool = False) -> dict:
     }
 
 
+def time_normal_equations(folder: Path, seed: int, budgets: tuple[int, ...]) -> dict[str, float]:
+    """Wall seconds of one Gauss–Newton system (the whole-track iteration's forward-mode passes,
+    :meth:`~fhnn.training.tracks.TrackFit._normal_equations`, after a first call that compiles)
+    at each budget, on the pieces a run of seed ``seed``'s default run would fit, its model."""
+    import time
+
+    import jax
+
+    from fhnn.data.dataset import read_dataset
+    from fhnn.training.run import Run
+    from fhnn.training.tracks import TrackFit, fitted_pieces
+
+    run = Run.load(folder / f"run_seed{seed}_defaults")
+    data = read_dataset(folder / f"track_seed{seed}.h5")
+    model = run.state.best_model
+    seconds = {}
+    for budget in budgets:
+        pieces, _ = fitted_pieces(data.train, budget, run.train_config.seed)
+        fit = TrackFit(model, model.track_parameters(), pieces)
+        jax.block_until_ready(fit._normal_equations())
+        began = time.perf_counter()
+        jax.block_until_ready(fit._normal_equations())
+        seconds[str(budget)] = time.perf_counter() - began
+    return seconds
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True, help="folder of the sN_B run folders")
     p.add_argument("--confirm", type=int, default=None, metavar="B", help="confirm budget B on seed 5")
+    p.add_argument(
+        "--time", action="store_true", help="also time one Gauss-Newton system per budget (run alone)"
+    )
     args = p.parse_args()
     confirming = args.confirm is not None
     if confirming:
@@ -99,6 +128,10 @@ def main() -> None:
         "chosen": args.confirm if confirming else chosen,
         **({"confirmed": chosen == args.confirm} if confirming else {}),
     }
+    if args.time:
+        first = data_seeds[0]
+        record["normal_equations_seconds"] = time_normal_equations(folder(first, DEFAULT), first, budgets)
+        record["timed_on"] = first
     target = DESIGN_DATA / f"track_budget_{'confirming' if confirming else 'choosing'}.json"
     target.write_text(json.dumps(record, indent=1))
     for b, r in ratios.items():
