@@ -530,8 +530,8 @@ def render_track_budget(record: dict[str, Any]) -> str:
         said = f"Own-data choosing seeds {', '.join(seeds)}; chosen: {int(record['chosen']):,}"
     caption = (
         f"*{said} (validation forecast ratio at most {record['forecast_slack']:g}). Training time and "
-        "the errors against the simulator's truth (means over the seeds) choose nothing; two runs "
-        "shared the 2 cores throughout.*"
+        "the errors against the simulator's truth (means over the seeds) choose nothing; the runs "
+        "shared the 2 cores, two to four at a time, so their training times do not compare.*"
     )
     return _table(header, rows) + "\n\n" + caption
 
