@@ -11,8 +11,8 @@ default.
 
 The rule, fixed in ``benchmarks/seeds.toml`` before the runs it reads were made: the smallest
 budget whose geometric mean ratio over the choosing seeds is at most :data:`FORECAST_SLACK`.
-Only that ratio chooses. The record keeps beside it each run's training time (two runs shared the
-2 cores throughout), the tracks its fit held, and its errors against the simulator's truth
+Only that ratio chooses. The record keeps beside it each run's training time (the runs shared
+the 2 cores, two to four at a time), the tracks its fit held, and its errors against the simulator's truth
 (coefficients, total drag, flow), which choose nothing.
 
     python benchmarks/own_data.py --data-seed N --skip-speed --out DIR/sN_default
